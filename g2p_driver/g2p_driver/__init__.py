@@ -1,0 +1,1 @@
+"""Raspberry Pi driver for the physical G2P rig, serving the rig contract."""

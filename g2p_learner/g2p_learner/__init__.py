@@ -1,0 +1,1 @@
+"""G2P learner: motor babbling, inverse-map refinement and reward search as ROS 2 actions."""

@@ -1,0 +1,110 @@
+"""Core configuration dataclasses as ROS parameters, one parameter per field.
+
+Defaults live in the dataclass; YAML files and `--ros-args -p` only override them. Nested dataclass
+fields become dotted names (`leg.tick_hz`). The field's line in the class docstring's `Attributes:`
+section becomes the parameter's description (`ros2 param describe`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import json
+import re
+from pathlib import Path
+from typing import Any, TypeVar
+
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.node import Node
+
+T = TypeVar("T")
+
+
+def declare_config(node: Node, cls: type[T], prefix: str = "") -> T:
+    """Declare one read-only parameter per field of the dataclass `cls` and build it from their values.
+
+    Raises:
+        g2p.config.ConfigError: a value is invalid (the message names the field).
+    """
+    docs = _attribute_docs(cls)
+    values: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+        if not f.init:
+            continue
+        default = _default_of(f)
+        name = prefix + f.name
+        if dataclasses.is_dataclass(default):
+            values[f.name] = declare_config(node, type(default), name + ".")
+            continue
+        descriptor = ParameterDescriptor(description=docs.get(f.name, ""), read_only=True)
+        node.declare_parameter(name, _to_ros(default), descriptor)
+        values[f.name] = _from_ros(node.get_parameter(name).value, default)
+    return cls(**values)
+
+
+def config_as_dict(config: object) -> dict[str, Any]:
+    """A configuration dataclass as plain JSON-compatible values, nested dataclasses as dicts."""
+    def plain(v: Any) -> Any:
+        if dataclasses.is_dataclass(v) and not isinstance(v, type):
+            return {f.name: plain(getattr(v, f.name)) for f in dataclasses.fields(v)}
+        if isinstance(v, enum.Enum):
+            return v.value
+        if isinstance(v, tuple | list):
+            return [plain(x) for x in v]
+        if isinstance(v, Path):
+            return str(v)
+        return v
+    return plain(config)  # type: ignore[no-any-return]
+
+
+def config_json(config: object) -> str:
+    """A configuration dataclass as a JSON document (sorted keys)."""
+    return json.dumps(config_as_dict(config), sort_keys=True)
+
+
+def _default_of(f: dataclasses.Field[Any]) -> Any:
+    if f.default is not dataclasses.MISSING:
+        return f.default
+    if f.default_factory is not dataclasses.MISSING:
+        return f.default_factory()
+    raise TypeError(f"configuration field {f.name} needs a default to become a ROS parameter")
+
+
+def _to_ros(value: Any) -> Any:
+    if isinstance(value, enum.Enum):
+        return value.value
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, tuple):
+        return list(value)
+    return value
+
+
+def _from_ros(value: Any, default: Any) -> Any:
+    if isinstance(default, enum.Enum):
+        return type(default)(value)
+    if isinstance(default, Path):
+        return Path(value)
+    if isinstance(default, tuple):
+        return tuple(value)
+    return value
+
+
+def _attribute_docs(cls: type) -> dict[str, str]:
+    """Field descriptions from a Google-style `Attributes:` docstring section."""
+    doc = cls.__doc__ or ""
+    section = doc.split("Attributes:", 1)
+    if len(section) < 2:
+        return {}
+    docs: dict[str, str] = {}
+    current = None
+    for line in section[1].splitlines():
+        m = re.match(r"^\s{4,8}(\w+)(?: \(.*?\))?: (.*)$", line)
+        if m:
+            current = m.group(1)
+            docs[current] = m.group(2).strip()
+        elif current and line.strip():
+            docs[current] += " " + line.strip()
+        elif not line.strip() and current:
+            current = None
+    return docs

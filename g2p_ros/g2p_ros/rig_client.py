@@ -1,0 +1,116 @@
+"""Client side of the rig contract: play activation sequences and reset the rig over ROS 2.
+
+`RigClient` implements the core's `g2p.rig.Rig` protocol, so the learner drives a rig on the ROS graph
+(simulator or hardware, chosen by remapping) exactly as it drives an in-process plant. Its calls block,
+so make them from a thread the node's executor is not using (e.g. an action's execute callback in a
+MultiThreadedExecutor); the executor completes the futures in its other threads.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+
+import numpy as np
+from g2p.plant import NOMINAL_TICK_HZ, Recording
+from g2p.rig import RigCancelled, RigError
+from g2p.safety import check_activation_sequence
+from g2p_interfaces.action import RunActivations
+from rclpy.action import ActionClient
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+from rclpy.task import Future
+from std_srvs.srv import Trigger
+
+from g2p_ros import contract
+from g2p_ros.convert import recording_from_msg
+
+
+class RigClient:
+    """Plays activation sequences on the rig serving `run_activations` and `reset` in the node's namespace.
+
+    Args:
+        node: the node to create the clients on (its executor must be spinning in another thread).
+        server_timeout_s: how long to wait for the rig to appear before each call (s).
+    """
+
+    def __init__(self, node: Node, server_timeout_s: float = 10.0) -> None:
+        self._node = node
+        self._server_timeout_s = server_timeout_s
+        group = ReentrantCallbackGroup()
+        self._action = ActionClient(node, RunActivations, contract.RUN_ACTIVATIONS, callback_group=group)
+        self._reset = node.create_client(Trigger, contract.RESET, callback_group=group)
+
+    def destroy(self) -> None:
+        """Destroy the clients."""
+        self._action.destroy()
+        self._node.destroy_client(self._reset)
+
+    def reset(self) -> None:
+        """Return the rig to its resting posture.
+
+        Raises:
+            RigError: the rig is not reachable or refused.
+        """
+        if not self._reset.wait_for_service(timeout_sec=self._server_timeout_s):
+            raise RigError(f"no rig answers {self._reset.srv_name} within {self._server_timeout_s} s")
+        response = _wait(self._reset.call_async(Trigger.Request()), 120.0, "reset")
+        if not response.success:
+            raise RigError(f"rig reset failed: {response.message}")
+
+    def play(self, activations: np.ndarray, progress: Callable[[int, int], None] | None = None,
+             cancel: threading.Event | None = None) -> Recording:
+        """Play an activation sequence (N, 3) at the rig's tick rate and return the recorded ticks.
+
+        Args:
+            activations: shape (N, 3), finite, in [0, 1].
+            progress: called with (ticks done, ticks total) as feedback arrives.
+            cancel: when set, the sequence is cancelled on the rig (motors to baseline) and RigCancelled
+                is raised.
+
+        Raises:
+            RigError: the rig is not reachable, rejected the goal, or stopped early.
+            RigCancelled: `cancel` was set.
+        """
+        seq = check_activation_sequence(activations)
+        if not self._action.wait_for_server(timeout_sec=self._server_timeout_s):
+            raise RigError(f"no rig serves {contract.RUN_ACTIVATIONS} within {self._server_timeout_s} s")
+
+        def on_feedback(msg: RunActivations.Impl.FeedbackMessage) -> None:
+            if progress is not None:
+                progress(int(msg.feedback.ticks_done), int(msg.feedback.ticks_total))
+
+        goal = RunActivations.Goal(activation=seq.ravel())
+        handle = _wait(self._action.send_goal_async(goal, feedback_callback=on_feedback), 30.0, "goal")
+        if not handle.accepted:
+            raise RigError("the rig rejected the run_activations goal (see the rig's log for the reason)")
+        result_future = handle.get_result_async()
+        # Worst case the rig plays in real time; add a margin for slow machines.
+        timeout_s = 60.0 + 3.0 * len(seq) / NOMINAL_TICK_HZ
+        deadline = time.monotonic() + timeout_s
+        done = threading.Event()
+        result_future.add_done_callback(lambda _: done.set())
+        while not done.wait(0.05):
+            if cancel is not None and cancel.is_set():
+                _wait(handle.cancel_goal_async(), 10.0, "cancel")
+                raise RigCancelled("sequence cancelled")
+            if time.monotonic() > deadline:
+                raise RigError(f"run_activations did not finish within {timeout_s:.0f} s")
+        response = result_future.result()
+        if response is None:
+            raise RigError("run_activations returned no result")
+        recording = recording_from_msg(response.result.samples)
+        if len(recording) != len(seq):
+            raise RigError(f"rig played {len(recording)} of {len(seq)} ticks: {response.result.message}")
+        return recording
+
+
+def _wait(future: Future, timeout_s: float, what: str) -> object:
+    done = threading.Event()
+    future.add_done_callback(lambda _: done.set())
+    if not done.wait(timeout_s):
+        raise RigError(f"no answer to {what} within {timeout_s} s")
+    if future.exception() is not None:
+        raise RigError(f"{what} failed: {future.exception()}")
+    return future.result()

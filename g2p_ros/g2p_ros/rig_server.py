@@ -1,0 +1,374 @@
+"""The rig contract served over ROS 2 for any plant: the simulator and the hardware driver share it.
+
+One tick loop, in its own thread, decides each tick's activation (a running `run_activations` sequence,
+else the latest `activation_cmd` through the watchdog, else baseline), steps the plant, and publishes
+the tick's four messages with one shared stamp. Executor callbacks only hand work to the loop.
+"""
+
+from __future__ import annotations
+
+import enum
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from g2p.plant import Plant, Recording, TickSample
+from g2p.safety import ActivationGate, InvalidActivation, check_activation_sequence
+from g2p_interfaces.action import RunActivations
+from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Header
+from std_srvs.srv import Trigger
+
+from g2p_ros import contract
+from g2p_ros.convert import rig_samples_msg, tick_messages, time_from_seconds
+
+
+class Pacing(enum.Enum):
+    """Who sets the pace of the tick loop."""
+
+    WALL_CLOCK = "wall_clock"
+    """Simulation in real time: the loop sleeps until each tick's end on the monotonic clock."""
+    PLANT = "plant"
+    """Hardware: `plant.step` itself blocks until the tick's absolute deadline."""
+    ON_DEMAND = "on_demand"
+    """Fast simulation: ticks only when there is work (a sequence, or one tick per command), unpaced."""
+
+
+@dataclass(frozen=True)
+class RigServerConfig:
+    """How the rig contract is served.
+
+    Attributes:
+        watchdog_ticks: ticks without a valid activation_cmd after which the motors drop to baseline.
+        baseline_activation: activation always applied at least (dimensionless, the paper's 15%).
+        feedback_period_s: wall time between run_activations feedback messages (s).
+        diagnostics_period_ticks: ticks between /diagnostics messages (78 = about 1 s of rig time).
+        log_period_s: minimum wall time between two warnings about rejected or ignored commands (s).
+    """
+
+    watchdog_ticks: int = 3
+    baseline_activation: float = 0.15
+    feedback_period_s: float = 0.2
+    diagnostics_period_ticks: int = 78
+    log_period_s: float = 1.0
+
+
+@dataclass
+class _Job:
+    """A run_activations sequence being played by the loop."""
+
+    activations: np.ndarray
+    samples: list[TickSample] = field(default_factory=list)
+    cancel: bool = False
+    error: str = ""
+    done: threading.Event = field(default_factory=threading.Event)
+
+
+@dataclass
+class _ResetRequest:
+    message: str = ""
+    success: bool = False
+    done: threading.Event = field(default_factory=threading.Event)
+
+
+class RigServer:
+    """Serves the rig contract for `plant` on `node`, with topics relative to the node's namespace.
+
+    Args:
+        node: the node to create publishers, subscriptions, the action and the service on.
+        plant: the plant; only the loop thread touches it after `start`.
+        pacing: who paces the loop (see Pacing).
+        config: watchdog and reporting settings.
+        sim_time: stamp ticks with the plant's own clock from 0 (simulation time); otherwise with system
+            time. Either way the stamps are published on /clock when `publish_clock` is set.
+        publish_clock: publish every tick's stamp on /clock (simulators).
+        on_fault: called from the loop thread when the plant raises; the loop drops to baseline.
+    """
+
+    def __init__(self, node: Node, plant: Plant, pacing: Pacing, config: RigServerConfig = RigServerConfig(),
+                 sim_time: bool = False, publish_clock: bool = False, on_fault: Callable[[Exception], None] | None = None) -> None:
+        self._node = node
+        self._plant = plant
+        self._pacing = pacing
+        self._config = config
+        self._sim_time = sim_time
+        self._on_fault = on_fault
+        self._log = node.get_logger()
+        self._gate = ActivationGate(config.watchdog_ticks, config.baseline_activation)
+        self._cv = threading.Condition()
+        self._job: _Job | None = None
+        self._goal_reserved = False
+        self._reset: _ResetRequest | None = None
+        self._lockstep_ticks = 0
+        self._ignored_commands = 0
+        self._ticks = 0
+        self._faults = 0
+        self._running = False
+        self._thread: threading.Thread | None = None
+        self._stamp_offset_s = 0.0
+        self._wall_start = 0.0
+        self._last_log = {"rejected": 0.0, "ignored": 0.0}
+
+        qos = contract.SAMPLE_QOS
+        self._pub_joints = node.create_publisher(JointState, contract.JOINT_STATES, qos)
+        self._pub_treadmill = node.create_publisher(Treadmill, contract.TREADMILL, qos)
+        self._pub_power = node.create_publisher(MotorPower, contract.MOTOR_POWER, qos)
+        self._pub_applied = node.create_publisher(MotorActivation, contract.APPLIED_ACTIVATION, qos)
+        self._pub_clock = node.create_publisher(Clock, "/clock", contract.CLOCK_QOS) if publish_clock else None
+        self._pub_diag = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        group = ReentrantCallbackGroup()
+        self._sub_cmd = node.create_subscription(MotorActivation, contract.ACTIVATION_CMD, self._on_command,
+                                                 contract.COMMAND_QOS, callback_group=group)
+        self._action = ActionServer(node, RunActivations, contract.RUN_ACTIVATIONS, execute_callback=self._execute,
+                                    goal_callback=self._on_goal, cancel_callback=self._on_cancel,
+                                    callback_group=group)
+        self._srv_reset = node.create_service(Trigger, contract.RESET, self._on_reset, callback_group=group)
+
+    # Life cycle ------------------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Reset the plant to rest and start the tick loop thread."""
+        first = self._plant.reset()
+        self._stamp_offset_s = 0.0 if self._sim_time else time.time() - first.t_s
+        self._wall_start = time.monotonic() - first.t_s
+        self._publish(first)
+        self._running = True
+        self._thread = threading.Thread(target=self._loop, name="rig_tick_loop", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop the loop, abort any sequence and leave the plant at baseline."""
+        with self._cv:
+            self._running = False
+            if self._job is not None:
+                self._job.error = "rig stopped"
+                self._job.done.set()
+            self._cv.notify_all()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+        self._gate.stop()
+
+    def destroy(self) -> None:
+        """Stop and destroy the ROS entities this server created."""
+        self.stop()
+        self._action.destroy()
+        for entity in (self._pub_joints, self._pub_treadmill, self._pub_power, self._pub_applied,
+                       self._pub_clock, self._pub_diag):
+            if entity is not None:
+                self._node.destroy_publisher(entity)
+        self._node.destroy_subscription(self._sub_cmd)
+        self._node.destroy_service(self._srv_reset)
+
+    # Executor callbacks: validate, hand over to the loop, wait ----------------------------------------
+
+    def _on_command(self, msg: MotorActivation) -> None:
+        with self._cv:
+            if self._job is not None:
+                self._ignored_commands += 1
+                self._warn("ignored", "activation_cmd ignored while a run_activations sequence plays "
+                           f"({self._ignored_commands} so far)")
+                return
+            if self._gate.command(msg.activation) is None:
+                self._warn("rejected", f"activation_cmd rejected (needs 3 finite values): {list(msg.activation)} "
+                           f"({self._gate.counters.rejected} rejected so far)")
+                return
+            if self._pacing is Pacing.ON_DEMAND:
+                self._lockstep_ticks += 1
+                self._cv.notify_all()
+
+    def _on_goal(self, goal: RunActivations.Goal) -> GoalResponse:
+        n = len(goal.activation)
+        try:
+            if n % 3:
+                raise InvalidActivation(f"activation has {n} values, not a multiple of 3")
+            check_activation_sequence(np.asarray(goal.activation).reshape(-1, 3))
+        except InvalidActivation as err:
+            self._log.warning(f"run_activations goal rejected: {err}")
+            return GoalResponse.REJECT
+        with self._cv:
+            if self._goal_reserved or self._reset is not None:
+                self._log.warning("run_activations goal rejected: another sequence or a reset is in progress")
+                return GoalResponse.REJECT
+            self._goal_reserved = True
+        return GoalResponse.ACCEPT
+
+    def _on_cancel(self, goal_handle: ServerGoalHandle) -> CancelResponse:
+        with self._cv:
+            if self._job is not None:
+                self._job.cancel = True  # the loop drops to baseline on its next tick
+        return CancelResponse.ACCEPT
+
+    def _execute(self, goal_handle: ServerGoalHandle) -> RunActivations.Result:
+        job = _Job(np.asarray(goal_handle.request.activation, dtype=np.float64).reshape(-1, 3))
+        with self._cv:
+            if not self._running:
+                job.error = "rig is not running"
+                job.done.set()
+            else:
+                self._job = job
+                self._cv.notify_all()
+        feedback = RunActivations.Feedback(ticks_total=len(job.activations))
+        while not job.done.wait(self._config.feedback_period_s):
+            feedback.ticks_done = len(job.samples)
+            goal_handle.publish_feedback(feedback)
+        with self._cv:
+            self._goal_reserved = False
+        samples = list(job.samples)
+        stamp = time_from_seconds(self._stamp(samples[0].t_s)) if samples else time_from_seconds(0.0)
+        result = RunActivations.Result(samples=rig_samples_msg(Recording.from_samples(samples), stamp),
+                                       message=job.error or ("cancelled" if job.cancel else ""))
+        if job.cancel and goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+        elif job.error or job.cancel:
+            goal_handle.abort()
+        else:
+            goal_handle.succeed()
+        return result
+
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        req = _ResetRequest()
+        with self._cv:
+            if self._goal_reserved or self._reset is not None:
+                response.success, response.message = False, "a run_activations sequence or reset is in progress"
+                return response
+            if not self._running:
+                response.success, response.message = False, "rig is not running"
+                return response
+            self._reset = req
+            self._cv.notify_all()
+        if not req.done.wait(60.0):
+            response.success, response.message = False, "reset timed out"
+            return response
+        response.success, response.message = req.success, req.message
+        return response
+
+    # The tick loop -----------------------------------------------------------------------------------
+
+    def _loop(self) -> None:
+        while True:
+            with self._cv:
+                while self._running and self._pacing is Pacing.ON_DEMAND and not self._has_work():
+                    self._cv.wait()
+                if not self._running:
+                    return
+                reset, self._reset = self._reset, None
+                job, activation = (None, None) if reset is not None else self._next_activation()
+            try:
+                if reset is not None:
+                    self._do_reset(reset)
+                    continue
+                sample = self._plant.step(activation)
+            except Exception as err:  # the plant failed: drop to baseline, fail the sequence, report
+                self._fault(err, job)
+                continue
+            self._pace(sample.t_s)
+            self._publish(sample)
+            if job is not None:
+                self._advance(job, sample)
+
+    def _has_work(self) -> bool:
+        return self._job is not None or self._reset is not None or self._lockstep_ticks > 0
+
+    def _next_activation(self) -> tuple[_Job | None, np.ndarray]:
+        """The sequence being played, if any, and the coming tick's activation (lock held)."""
+        job = self._job
+        if job is not None and not job.cancel:
+            return job, job.activations[len(job.samples)]
+        if job is not None:  # cancelled: end the sequence now, baseline from this tick on
+            self._finish(job)
+            return None, self._gate.stop()
+        if self._lockstep_ticks > 0:
+            self._lockstep_ticks -= 1
+        return None, self._gate.next_activation()
+
+    def _advance(self, job: _Job, sample: TickSample) -> None:
+        job.samples.append(sample)
+        if len(job.samples) == len(job.activations):
+            with self._cv:
+                self._finish(job)
+                self._gate.stop()  # the sequence is over: baseline until the next command
+
+    def _finish(self, job: _Job) -> None:
+        if self._job is job:
+            self._job = None
+        job.done.set()
+
+    def _do_reset(self, req: _ResetRequest) -> None:
+        try:
+            sample = self._plant.reset()
+        except Exception as err:
+            req.success, req.message = False, f"reset failed: {err}"
+            self._fault(err, None)
+        else:
+            self._gate.stop()
+            self._publish(sample)
+            req.success, req.message = True, "at rest"
+        req.done.set()
+
+    def _fault(self, err: Exception, job: _Job | None) -> None:
+        self._faults += 1
+        self._log.error(f"plant fault: {type(err).__name__}: {err}")
+        with self._cv:
+            self._gate.stop()
+            if job is not None:
+                job.error = f"plant fault: {err}"
+                self._finish(job)
+        if self._on_fault is not None:
+            self._on_fault(err)
+
+    def _pace(self, t_s: float) -> None:
+        if self._pacing is Pacing.WALL_CLOCK:
+            delay = self._wall_start + t_s - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+
+    def _stamp(self, t_s: float) -> float:
+        return t_s + self._stamp_offset_s
+
+    def _publish(self, sample: TickSample) -> None:
+        stamp = time_from_seconds(self._stamp(sample.t_s))
+        joints, treadmill, power, applied = tick_messages(sample, stamp)
+        if self._pub_clock is not None:
+            self._pub_clock.publish(Clock(clock=stamp))
+        self._pub_joints.publish(joints)
+        self._pub_treadmill.publish(treadmill)
+        self._pub_power.publish(power)
+        self._pub_applied.publish(applied)
+        self._ticks += 1
+        if self._ticks % self._config.diagnostics_period_ticks == 0:
+            self._publish_diagnostics(stamp)
+
+    def _publish_diagnostics(self, stamp: Time) -> None:
+        c = self._gate.counters
+        values = {"ticks": self._ticks, "commands_accepted": c.accepted, "commands_clamped": c.clamped,
+                  "commands_rejected": c.rejected, "commands_ignored_during_sequence": self._ignored_commands,
+                  "watchdog_trips": c.watchdog_trips, "plant_faults": self._faults}
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.OK if self._faults == 0 else DiagnosticStatus.WARN,
+            name=f"{self._node.get_fully_qualified_name()}: rig", hardware_id=type(self._plant).__name__,
+            message="ok" if self._faults == 0 else f"{self._faults} plant faults",
+            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
+        self._pub_diag.publish(DiagnosticArray(header=Header(stamp=stamp), status=[status]))
+
+    def _warn(self, kind: str, text: str) -> None:
+        now = time.monotonic()
+        if now - self._last_log[kind] >= self._config.log_period_s:
+            self._last_log[kind] = now
+            self._log.warning(text)
+
+    @property
+    def counters(self) -> dict[str, int]:
+        """Command counters since start (accepted, clamped, rejected, ignored, watchdog trips)."""
+        c = self._gate.counters
+        return {"accepted": c.accepted, "clamped": c.clamped, "rejected": c.rejected,
+                "ignored": self._ignored_commands, "watchdog_trips": c.watchdog_trips}

@@ -1,0 +1,80 @@
+"""`ros2 run g2p_sim sim`: the MuJoCo leg on a treadmill, serving the rig contract like the hardware."""
+
+from __future__ import annotations
+
+import enum
+import sys
+from dataclasses import dataclass
+
+import rclpy
+from g2p.config import ConfigError
+from g2p.sim import MujocoLeg, MujocoLegConfig
+from g2p_ros.contract import DEFAULT_NAMESPACE
+from g2p_ros.params import declare_config
+from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+
+
+class TimeMode(enum.Enum):
+    """How simulated time relates to wall time."""
+
+    REALTIME = "realtime"
+    FAST = "fast"
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """The simulator node's own settings.
+
+    Attributes:
+        time_mode: "realtime": ticks paced by the wall clock, stamps in system time, like the hardware.
+            "fast": ticks only while there is work (a run_activations sequence, or one tick per
+            activation_cmd), as fast as the graph consumes them; stamps and /clock in simulation time
+            from 0, so every other node runs with use_sim_time.
+    """
+
+    time_mode: TimeMode = TimeMode.REALTIME
+
+
+class SimNode(Node):
+    """Builds the MuJoCo plant from parameters and serves the rig contract for it."""
+
+    def __init__(self) -> None:
+        super().__init__("sim", namespace=DEFAULT_NAMESPACE)
+        self.config = declare_config(self, SimConfig)
+        leg_config = declare_config(self, MujocoLegConfig, "leg.")
+        rig_config = declare_config(self, RigServerConfig, "rig.")
+        fast = self.config.time_mode is TimeMode.FAST
+        self.rig = RigServer(self, MujocoLeg(leg_config), Pacing.ON_DEMAND if fast else Pacing.WALL_CLOCK,
+                             rig_config, sim_time=fast, publish_clock=True)
+        self.rig.start()
+        self.get_logger().info(f"MuJoCo leg serving the rig contract in {self.get_namespace()} "
+                               f"({self.config.time_mode.value} time)")
+
+    def destroy_node(self) -> None:
+        self.rig.destroy()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> None:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SimNode()
+        executor = MultiThreadedExecutor(num_threads=3)
+        executor.add_node(node)
+        executor.spin()
+    except ConfigError as err:
+        print(f"g2p_sim: invalid parameter {err}", file=sys.stderr)
+        sys.exit(2)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,32 @@
+"""Session-wide test environment: DDS on loopback and a ROS domain of this session's own."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+from pathlib import Path
+
+# Fast DDS must never send discovery traffic beyond loopback, in this process and its children.
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+
+
+def _claim_domain_id() -> int:
+    """Lock a ROS domain id (1..101) for this test session, so parallel sessions never see each other.
+
+    The lock is an flock on a file in /tmp, held until the process exits.
+    """
+    for domain in range(1, 102):
+        lock = open(Path("/tmp") / f"g2p-ros-domain-{domain}.lock", "w")  # noqa: SIM115 (held for the session)
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock.close()
+            continue
+        _held_locks.append(lock)
+        return domain
+    raise RuntimeError("no free ROS domain id in 1..101 (too many test sessions at once?)")
+
+
+_held_locks: list[object] = []
+os.environ["ROS_DOMAIN_ID"] = str(_claim_domain_id())
