@@ -20,5 +20,5 @@ setup(
     maintainer_email="g2p-rig@example.org",
     description="See package.xml.",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={"console_scripts": ["learn = g2p_learner.learn_main:main"]},
 )

@@ -20,8 +20,14 @@ from rclpy.node import Node
 T = TypeVar("T")
 
 
-def declare_config(node: Node, cls: type[T], prefix: str = "") -> T:
+def declare_config(node: Node, cls: type[T], prefix: str = "", exclude: tuple[str, ...] = ()) -> T:
     """Declare one read-only parameter per field of the dataclass `cls` and build it from their values.
+
+    Args:
+        node: the node to declare the parameters on.
+        cls: a dataclass whose fields all have defaults.
+        prefix: prepended to every parameter name (e.g. "leg.").
+        exclude: fields left at their defaults and not declared (set by the node from other parameters).
 
     Raises:
         g2p.config.ConfigError: a value is invalid (the message names the field).
@@ -29,7 +35,7 @@ def declare_config(node: Node, cls: type[T], prefix: str = "") -> T:
     docs = _attribute_docs(cls)
     values: dict[str, Any] = {}
     for f in dataclasses.fields(cls):  # type: ignore[arg-type]
-        if not f.init:
+        if not f.init or f.name in exclude:
             continue
         default = _default_of(f)
         name = prefix + f.name

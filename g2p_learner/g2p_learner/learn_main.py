@@ -1,0 +1,142 @@
+"""`ros2 run g2p_learner learn`: a full G2P learning run against the rig on the learner's topics.
+
+Hosts the learner node, sends it one `learn` goal through its own action interface, prints progress as
+feedback arrives and a summary at the end. `--serve` only hosts the actions (for other clients).
+
+    ros2 run g2p_learner learn [--serve] [--dataset-bag DIR] [--ros-args -p search.threshold_mm:=64.0 ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import signal
+import sys
+import threading
+
+import rclpy
+from g2p.config import ConfigError
+from action_msgs.msg import GoalStatus
+from g2p_interfaces.action import Learn
+from rclpy.action import ActionClient
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+from rclpy.utilities import remove_ros_args
+
+from g2p_learner.learner_node import LearnerNode
+
+
+def _parse(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="learn", description=__doc__.splitlines()[0])
+    parser.add_argument("--serve", action="store_true", help="only host the actions; run no learning run")
+    parser.add_argument("--dataset-bag", default="",
+                        help="build the initial map from this recorded run instead of babbling")
+    return parser.parse_args(remove_ros_args(argv)[1:])
+
+
+def _show_feedback(msg: Learn.Impl.FeedbackMessage) -> None:
+    fb = msg.feedback
+    if fb.phase == "babbling":
+        print(f"\rbabbling {100 * fb.babbling_progress:5.1f}%", end="", flush=True)
+        if fb.babbling_progress >= 1.0:
+            print()
+        return
+    sigma = f"  sigma {fb.sigma:.3f}" if fb.sigma > 0 else ""
+    print(f"attempt {fb.attempt:3d}  {fb.phase:<12s} reward {fb.reward_mm:7.1f} mm  "
+          f"best {fb.best_reward_mm:7.1f} mm{sigma}", flush=True)
+
+
+def _summary(result: Learn.Result, status_ok: bool) -> str:
+    lines = ["", "| run | crossed 64 mm | exploration attempts | exploitation attempts | best reward (mm) |",
+             "| --- | --- | --- | --- | --- |",
+             f"| {result.run_id} | {'yes' if result.crossed_threshold else 'no'} | {result.exploration_attempts} "
+             f"| {result.exploitation_attempts} | {result.best_reward_mm:.1f} |"]
+    if len(result.best_features) and all(math.isfinite(f) for f in result.best_features):
+        lines.append("best features: " + " ".join(f"{f:.3f}" for f in result.best_features))
+    if result.bag_path:
+        lines.append(f"recorded in {result.bag_path}")
+    if not status_ok:
+        lines.append(f"the run did not complete: {result.message}")
+    return "\n".join(lines)
+
+
+def _wait(future: object, stop: threading.Event) -> bool:
+    """Wait for an rclpy future; False when `stop` was set first."""
+    done = threading.Event()
+    future.add_done_callback(lambda _: done.set())  # type: ignore[attr-defined]
+    while not done.wait(0.1):
+        if stop.is_set():
+            return False
+    return True
+
+
+def run_learning(node: LearnerNode, dataset_bag: str, stop: threading.Event) -> int:
+    """Send one learn goal to the node's own action server and report; returns the exit code.
+
+    When `stop` is set (Ctrl-C, SIGTERM) the goal is cancelled, which drops the rig to baseline.
+    """
+    client = ActionClient(node, Learn, "learn")
+    try:
+        return _run_goal(client, dataset_bag, stop)
+    finally:
+        client.destroy()
+
+
+def _run_goal(client: ActionClient, dataset_bag: str, stop: threading.Event) -> int:
+    if not client.wait_for_server(timeout_sec=30.0):
+        print("learn: the learner's action server did not come up", file=sys.stderr)
+        return 1
+    send = client.send_goal_async(Learn.Goal(dataset_bag=dataset_bag), feedback_callback=_show_feedback)
+    if not _wait(send, stop):
+        return 130
+    handle = send.result()
+    if handle is None or not handle.accepted:
+        print("learn: goal rejected (see the log above for the reason)", file=sys.stderr)
+        return 1
+    result_future = handle.get_result_async()
+    if not _wait(result_future, stop):
+        print("\nlearn: stopping: cancelling the run (the rig drops to baseline)", file=sys.stderr)
+        _wait(handle.cancel_goal_async(), threading.Event())
+        _wait(result_future, threading.Event())
+        return 130
+    response = result_future.result()
+    ok = response.status == GoalStatus.STATUS_SUCCEEDED
+    print(_summary(response.result, ok), flush=True)
+    return 0 if ok else 1
+
+
+def main(args: list[str] | None = None) -> None:
+    argv = sys.argv if args is None else args
+    options = _parse(argv)
+    # Signals are handled here, not by rclpy, so that a running goal is cancelled on the rig (motors to
+    # baseline) while the executor still spins, before the context goes down.
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    node = None
+    code = 0
+    executor = MultiThreadedExecutor(num_threads=4)
+    try:
+        node = LearnerNode()
+        executor.add_node(node)
+        threading.Thread(target=executor.spin, daemon=True).start()
+        if options.serve:
+            stop.wait()
+        else:
+            code = run_learning(node, options.dataset_bag, stop)
+    except ConfigError as err:
+        print(f"learn: invalid parameter {err}", file=sys.stderr)
+        code = 2
+    finally:
+        if node is not None:
+            node.stop_goals(timeout_s=10.0)
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    sys.exit(code)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,391 @@
+"""The learner node: babbling, attempts, full G2P runs and tracking experiments as ROS 2 actions.
+
+It drives whatever rig serves `run_activations` and `reset` in its namespace (simulator or hardware,
+chosen by remapping), publishes every event and every inverse map for the recorder, and keeps the
+algorithm in the core library (g2p.learner, g2p.experiments).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+from g2p.attempt import AttemptOutcome
+from g2p.config import require, require_positive
+from g2p.experiments import TreadmillRun, evaluate_fixed_map, random_features, treadmill_result
+from g2p.inverse_map import FitReport
+from g2p.learner import Learner, LearnerConfig
+from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig, check_features
+from g2p.rig import RigCancelled, RigError
+from g2p.search import SearchConfig
+from g2p_interfaces.action import Attempt, Babble, Learn, Track
+from g2p_interfaces.msg import InverseMapWeights, LearnerEvent, NamedArray
+from g2p_ros.contract import DEFAULT_NAMESPACE
+from g2p_ros.params import config_json, declare_config
+from g2p_ros.rig_client import RigClient
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Header, String
+
+# Events and maps must reach the recorder whole; the newest map and the configuration stay available to
+# late joiners (transient local).
+EVENT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+MAP_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+CONFIG_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def new_run_id() -> str:
+    """A run id that sorts by time and does not collide: UTC time to the second plus a random suffix."""
+    return datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ") + "-" + uuid.uuid4().hex[:6]
+
+
+@dataclass(frozen=True)
+class LearnerNodeConfig:
+    """The learner node's settings.
+
+    Attributes:
+        run_id: identifier of the next learning run; "" generates one (UTC time and a random suffix).
+        bag_path: where a recorder records this node's runs, reported in the learn result ("" = none).
+        air_feature_low: lowest feature of the free-movement (track) trajectories (paper: 0.2).
+        air_feature_high: highest feature of the free-movement (track) trajectories (paper: 0.8).
+        rig_timeout_s: how long to wait for the rig's action and service to appear (s).
+        learner: babbling, preprocessing and inverse-map settings.
+        cycle: limit-cycle shape, timing and treadmill feature bounds (also the search's bounds).
+        search: reward search (threshold, attempt budgets, sigma schedule).
+    """
+
+    run_id: str = ""
+    bag_path: str = ""
+    air_feature_low: float = AIR_FEATURE_BOUNDS[0]
+    air_feature_high: float = AIR_FEATURE_BOUNDS[1]
+    rig_timeout_s: float = 30.0
+    learner: LearnerConfig = field(default_factory=LearnerConfig)
+    cycle: LimitCycleConfig = field(default_factory=LimitCycleConfig)
+    search: SearchConfig = field(default_factory=SearchConfig)
+
+    def __post_init__(self) -> None:
+        require(0.0 < self.air_feature_low < self.air_feature_high, "air_feature_low, air_feature_high",
+                f"must satisfy 0 < low < high, got ({self.air_feature_low}, {self.air_feature_high})")
+        require_positive(self.rig_timeout_s, "rig_timeout_s")
+
+    @property
+    def air_cycle(self) -> LimitCycleConfig:
+        """The limit cycles of the free-movement experiments: the treadmill's, with the air bounds."""
+        return replace(self.cycle, feature_low=self.air_feature_low, feature_high=self.air_feature_high)
+
+    @property
+    def search_config(self) -> SearchConfig:
+        """The search, with the cycle's feature count and bounds."""
+        return replace(self.search, n_features=self.cycle.n_spokes, feature_low=self.cycle.feature_low,
+                       feature_high=self.cycle.feature_high)
+
+
+class GoalRejected(ValueError):
+    """A goal is invalid; the message says why."""
+
+
+class LearnerNode(Node):
+    """Hosts the babble, attempt, learn and track actions; one goal at a time."""
+
+    def __init__(self) -> None:
+        super().__init__("learner", namespace=DEFAULT_NAMESPACE)
+        search_fields = ("n_features", "feature_low", "feature_high")
+        base = declare_config(self, LearnerNodeConfig, exclude=("learner", "cycle", "search"))
+        self.config = replace(base, learner=declare_config(self, LearnerConfig, "learner."),
+                              cycle=declare_config(self, LimitCycleConfig, "cycle."),
+                              search=declare_config(self, SearchConfig, "search.", exclude=search_fields))
+        self.rig = RigClient(self, self.config.rig_timeout_s)
+        self.learner = Learner(self.config.learner)
+        self.run_id = self.config.run_id or new_run_id()
+        self._busy = False
+        self._busy_lock = threading.Lock()
+        self._cancel = threading.Event()
+
+        self._events = self.create_publisher(LearnerEvent, "~/events", EVENT_QOS)
+        self._maps = self.create_publisher(InverseMapWeights, "~/inverse_map", MAP_QOS)
+        self._config_pub = self.create_publisher(String, "~/config", CONFIG_QOS)
+        self._config_pub.publish(String(data=config_json(self.config)))
+
+        group = ReentrantCallbackGroup()
+        self._servers = [
+            ActionServer(self, action, name, execute_callback=self._guarded(action, execute),
+                         goal_callback=self._goal_callback(validate), cancel_callback=self._on_cancel,
+                         callback_group=group)
+            for action, name, execute, validate in (
+                (Babble, "babble", self._execute_babble, self._validate_babble),
+                (Attempt, "attempt", self._execute_attempt, self._validate_attempt),
+                (Learn, "learn", self._execute_learn, self._validate_learn),
+                (Track, "track", self._execute_track, self._validate_track),
+            )
+        ]
+
+    def stop_goals(self, timeout_s: float) -> bool:
+        """Cancel whatever goal runs (the rig drops to baseline) and wait until it ended; False on timeout."""
+        self._cancel.set()
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            with self._busy_lock:
+                if not self._busy:
+                    return True
+            time.sleep(0.05)
+        return False
+
+    def destroy_node(self) -> None:
+        for server in self._servers:
+            server.destroy()
+        self.rig.destroy()
+        super().destroy_node()
+
+    # Goal validation ---------------------------------------------------------------------------------
+
+    def _goal_callback(self, validate: Callable[[object], None]) -> Callable[[object], GoalResponse]:
+        def callback(goal: object) -> GoalResponse:
+            try:
+                validate(goal)
+            except GoalRejected as err:
+                self.get_logger().warning(f"goal rejected: {err}")
+                return GoalResponse.REJECT
+            with self._busy_lock:
+                if self._busy:
+                    self.get_logger().warning("goal rejected: another goal is running")
+                    return GoalResponse.REJECT
+                self._busy = True
+            return GoalResponse.ACCEPT
+        return callback
+
+    def _validate_babble(self, goal: Babble.Goal) -> None:
+        _require_goal(math.isfinite(goal.duration_s) and goal.duration_s >= 0,
+                      f"duration_s must be finite and >= 0, got {goal.duration_s}")
+
+    def _validate_attempt(self, goal: Attempt.Goal) -> None:
+        _check_goal_features(goal.features, self.config.cycle)
+        _require_goal(self.learner.inverse_map.is_fitted, "no inverse map yet: babble first")
+
+    def _validate_learn(self, goal: Learn.Goal) -> None:
+        for name in ("babbling_duration_s", "threshold_mm"):
+            value = getattr(goal, name)
+            _require_goal(math.isfinite(value) and value >= 0, f"{name} must be finite and >= 0, got {value}")
+        if goal.dataset_bag:
+            _require_goal(Path(goal.dataset_bag).is_dir(), f"dataset_bag {goal.dataset_bag!r} is not a directory")
+
+    def _validate_track(self, goal: Track.Goal) -> None:
+        _require_goal(goal.mode in (Track.Goal.MODE_REFINE_ONE, Track.Goal.MODE_GENERALIZATION),
+                      f"mode must be {Track.Goal.MODE_REFINE_ONE} or {Track.Goal.MODE_GENERALIZATION}, got {goal.mode}")
+        if len(goal.features):
+            _check_goal_features(goal.features, self.config.air_cycle)
+        _require_goal(self.learner.inverse_map.is_fitted, "no inverse map yet: babble first")
+
+    def _on_cancel(self, goal_handle: ServerGoalHandle) -> CancelResponse:
+        self._cancel.set()  # the rig drops to baseline within one tick; the goal ends between steps
+        return CancelResponse.ACCEPT
+
+    # Execution ---------------------------------------------------------------------------------------
+
+    def _guarded(self, action: type, execute: Callable[[ServerGoalHandle], object]) -> Callable[..., object]:
+        """Run a goal; a cancel or rig failure ends it cleanly with a message; always free the learner."""
+        def run(goal_handle: ServerGoalHandle) -> object:
+            self._cancel.clear()
+            try:
+                return execute(goal_handle)
+            except RigCancelled as err:
+                goal_handle.canceled()
+                return action.Result(message=f"cancelled: {err}")
+            except (RigError, ValueError) as err:
+                self.get_logger().error(f"{action.__name__} goal aborted: {err}")
+                self._event("run_end", detail={"error": str(err)})
+                goal_handle.abort()
+                return action.Result(message=str(err))
+            finally:
+                with self._busy_lock:
+                    self._busy = False
+        return run
+
+    def _check_cancel(self, goal_handle: ServerGoalHandle) -> None:
+        if goal_handle.is_cancel_requested or self._cancel.is_set():
+            raise RigCancelled("cancel requested")
+
+    def _execute_babble(self, goal_handle: ServerGoalHandle) -> Babble.Result:
+        def progress(done: int, total: int) -> None:
+            goal_handle.publish_feedback(Babble.Feedback(progress=done / total, samples_done=done))
+        fit = self._babble(goal_handle.request.duration_s or None, progress)
+        goal_handle.succeed()
+        return Babble.Result(sample_count=len(self.learner.dataset), validation_rmse=fit.validation_rmse)
+
+    def _babble(self, duration_s: float | None, progress: Callable[[int, int], None]) -> FitReport:
+        self._event("phase_start", phase="babbling")
+        fit = self.learner.babble(self.rig, duration_s, progress, self._cancel)
+        self._publish_map(fit)
+        self._event("phase_end", phase="babbling", detail={"samples": len(self.learner.dataset),
+                                                           "validation_rmse": fit.validation_rmse})
+        return fit
+
+    def _execute_attempt(self, goal_handle: ServerGoalHandle) -> Attempt.Result:
+        goal = goal_handle.request
+        cycle = replace(self.config.cycle, n_cycles=goal.cycles) if goal.cycles else self.config.cycle
+        outcome, fit = self._attempt(goal_handle, np.asarray(goal.features), cycle, "attempt",
+                                     not goal.skip_refinement, number=self.learner.refinements + 1)
+        goal_handle.succeed()
+        return Attempt.Result(reward_mm=outcome.reward_mm, energy_j=outcome.energy_j,
+                              tracking_mse_deg2=outcome.tracking.mse_deg2,
+                              tracking_rmse_rad=outcome.tracking.rmse_rad, refined=fit is not None)
+
+    def _attempt(self, goal_handle: ServerGoalHandle, features: np.ndarray, cycle: LimitCycleConfig, phase: str,
+                 refine: bool, number: int) -> tuple[AttemptOutcome, FitReport | None]:
+        self._event("attempt_start", phase=phase, attempt=number, features=features)
+
+        def progress(done: int, total: int) -> None:
+            if isinstance(goal_handle.request, Attempt.Goal):
+                goal_handle.publish_feedback(Attempt.Feedback(stage="playing", ticks_done=done, ticks_total=total))
+        outcome, fit = self.learner.attempt(self.rig, features, cycle, refine, progress, self._cancel)
+        self._attempt_end(phase, number, outcome)
+        if fit is not None:
+            self._publish_map(fit)
+        return outcome, fit
+
+    def _execute_learn(self, goal_handle: ServerGoalHandle) -> Learn.Result:
+        goal = goal_handle.request
+        search = self.config.search_config
+        search = replace(search, threshold_mm=goal.threshold_mm or search.threshold_mm,
+                         max_exploration_attempts=goal.max_exploration_attempts or search.max_exploration_attempts,
+                         exploitation_attempts=goal.exploitation_attempts or search.exploitation_attempts)
+        self._event("run_start", detail={"goal": {"dataset_bag": goal.dataset_bag,
+                                                  "babbling_duration_s": goal.babbling_duration_s},
+                                         "search": json.loads(config_json(search))})
+        if goal.dataset_bag:
+            fit = self._fit_from_bag(goal.dataset_bag)
+        else:
+            def progress(done: int, total: int) -> None:
+                goal_handle.publish_feedback(Learn.Feedback(phase="babbling", babbling_progress=done / total,
+                                                            reward_mm=math.nan, best_reward_mm=math.nan))
+            fit = self._babble(goal.babbling_duration_s or None, progress)
+        run = TreadmillRun(self.learner, search, self.config.cycle, self.config.learner.seed)
+        while not run.finished:
+            self._check_cancel(goal_handle)
+            number = len(run.reports) + 1
+            phase = run.search.phase.value
+            self._event("attempt_start", phase=phase, attempt=number)
+            report = run.next_attempt(self.rig, cancel=self._cancel)
+            self._attempt_end(report.phase.value, report.number, report.outcome, sigma=report.sigma,
+                              best=report.best_reward_mm)
+            if report.fit is not None:
+                self._publish_map(report.fit)
+            goal_handle.publish_feedback(Learn.Feedback(
+                phase=report.phase.value, babbling_progress=1.0, attempt=report.number, reward_mm=report.outcome.reward_mm,
+                best_reward_mm=report.best_reward_mm, sigma=report.sigma or 0.0))
+        result = treadmill_result(run, fit)
+        summary = {"crossed_threshold": result.crossed_threshold, "best_reward_mm": result.best_reward_mm,
+                   "best_features": result.best_features.tolist(),
+                   "exploration_attempts": result.exploration_attempts,
+                   "exploitation_attempts": result.exploitation_attempts}
+        self._event("run_end", detail=summary)
+        goal_handle.succeed()
+        return Learn.Result(best_features=result.best_features, best_reward_mm=result.best_reward_mm,
+                            crossed_threshold=result.crossed_threshold,
+                            exploration_attempts=result.exploration_attempts,
+                            exploitation_attempts=result.exploitation_attempts, run_id=self.run_id,
+                            bag_path=self.config.bag_path)
+
+    def _fit_from_bag(self, bag: str) -> FitReport:
+        from g2p.bags.dataset import load_training_data  # only runs reading a bag need the bag library
+
+        data = load_training_data(bag)
+        fit = self.learner.fit_babbling(list(data.babbling))
+        self._publish_map(fit)
+        for k, recording in enumerate(data.attempts, start=1):
+            fit = self.learner.refine_with(recording, f"attempt {k} from {bag}")
+            self._publish_map(fit)
+        self._event("phase_end", phase="babbling", detail={"dataset_bag": bag, "samples": len(self.learner.dataset)})
+        return fit
+
+    def _execute_track(self, goal_handle: ServerGoalHandle) -> Track.Result:
+        goal = goal_handle.request
+        cycle = self.config.air_cycle
+        rng = np.random.default_rng(np.random.SeedSequence(self.config.learner.seed).spawn(4)[3])
+
+        def feedback(stage: str, index: int, outcome_mse: float) -> None:
+            goal_handle.publish_feedback(Track.Feedback(stage=stage, index=index, tracking_mse_deg2=outcome_mse))
+
+        if goal.mode == Track.Goal.MODE_REFINE_ONE:
+            features = np.asarray(goal.features) if len(goal.features) else random_features(rng, cycle, 1)[0]
+            refinements = goal.refinements or 5
+            mse = []
+            for k in range(refinements + 1):
+                self._check_cancel(goal_handle)
+                outcome, _ = self._attempt(goal_handle, features, cycle, "tracking", k < refinements, k + 1)
+                mse.append(outcome.tracking.mse_deg2)
+                feedback("training", k + 1, outcome.tracking.mse_deg2)
+            goal_handle.succeed()
+            return Track.Result(attempt_mse_deg2=mse)
+
+        train = random_features(rng, cycle, goal.train_trajectories or 30)
+        test = random_features(rng, cycle, goal.test_trajectories or 30)
+        babbling_map = self.learner.frozen_map()
+        for k, features in enumerate(train, start=1):
+            self._check_cancel(goal_handle)
+            outcome, _ = self._attempt(goal_handle, features, cycle, "tracking", True, k)
+            feedback("training", k, outcome.tracking.mse_deg2)
+        before, after = [], []
+        for k, features in enumerate(test, start=1):
+            self._check_cancel(goal_handle)
+            (b,) = evaluate_fixed_map(babbling_map, self.rig, features[None], cycle)
+            (a,) = evaluate_fixed_map(self.learner.inverse_map, self.rig, features[None], cycle)
+            before.append(b.mse_deg2)
+            after.append(a.mse_deg2)
+            feedback("testing", k, a.mse_deg2)
+        goal_handle.succeed()
+        return Track.Result(babbling_map_mse_deg2=before, refined_map_mse_deg2=after)
+
+    # Publishing ----------------------------------------------------------------------------------------
+
+    def _event(self, event: str, phase: str = "", attempt: int = 0, features: np.ndarray | None = None,
+               detail: dict[str, object] | None = None, **values: float) -> None:
+        msg = LearnerEvent(header=Header(stamp=self.get_clock().now().to_msg()), run_id=self.run_id, event=event,
+                           phase=phase, attempt=attempt,
+                           features=np.asarray(features if features is not None else [], dtype=np.float64),
+                           reward_mm=math.nan, energy_j=math.nan, tracking_mse_deg2=math.nan,
+                           tracking_rmse_rad=math.nan, best_reward_mm=math.nan, sigma=math.nan,
+                           detail=json.dumps(detail or {}))
+        for name, value in values.items():
+            setattr(msg, name, float(value))
+        self._events.publish(msg)
+
+    def _attempt_end(self, phase: str, number: int, outcome: AttemptOutcome, sigma: float | None = None,
+                     best: float = math.nan) -> None:
+        self._event("attempt_end", phase=phase, attempt=number, features=outcome.features,
+                    detail={"desired_rad": outcome.desired[:, :2].tolist()},
+                    reward_mm=outcome.reward_mm, energy_j=outcome.energy_j,
+                    tracking_mse_deg2=outcome.tracking.mse_deg2, tracking_rmse_rad=outcome.tracking.rmse_rad,
+                    sigma=math.nan if sigma is None else sigma, best_reward_mm=best)
+
+    def _publish_map(self, fit: FitReport) -> None:
+        arrays = self.learner.inverse_map.to_arrays()
+        self._maps.publish(InverseMapWeights(
+            header=Header(stamp=self.get_clock().now().to_msg()), run_id=self.run_id,
+            refinement=self.learner.refinements, format_version=int(arrays.pop("format_version")[0]),
+            arrays=[NamedArray(name=k, shape=list(v.shape), data=v.ravel()) for k, v in arrays.items()],
+            training_samples=fit.n_train + fit.n_validation, validation_rmse=fit.validation_rmse))
+
+
+def _require_goal(condition: bool, reason: str) -> None:
+    if not condition:
+        raise GoalRejected(reason)
+
+
+def _check_goal_features(features: object, cycle: LimitCycleConfig) -> None:
+    try:
+        check_features(np.asarray(features, dtype=np.float64), cycle)
+    except ValueError as err:
+        raise GoalRejected(str(err)) from err

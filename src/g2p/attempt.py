@@ -1,0 +1,117 @@
+"""One attempt: a limit cycle through the inverse map, played on a rig, and how well it did.
+
+features (10,) -> target kinematics (N, 6) -> inverse map -> activations (N, 3) clipped to
+[baseline, 1] -> played on the rig from rest -> reward (belt travel, mm), energy (J) and tracking error.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from g2p.inverse_map import InverseMap
+from g2p.limit_cycle import LimitCycleConfig, attempt_kinematics
+from g2p.plant import Recording
+from g2p.rig import ProgressCallback, Rig
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class TrackingError:
+    """Joint-angle tracking error over the second half of an attempt.
+
+    Attributes:
+        mse_deg2: mean squared error per joint, summed over the two joints (deg^2): the paper's measure.
+        rmse_rad: root-mean-square error over both joints together (rad).
+    """
+
+    mse_deg2: float
+    rmse_rad: float
+
+
+@dataclass(frozen=True)
+class AttemptOutcome:
+    """What one attempt asked for, what the rig did, and its scores.
+
+    Attributes:
+        features: the limit cycle's features, shape (10,).
+        desired: target kinematics, one row per tick, shape (N, 6) (rad, rad/s, rad/s^2).
+        activations: activations commanded, shape (N, 3).
+        recording: the N ticks the rig recorded.
+        reward_mm: belt travel during the attempt (mm, + backward = forward locomotion).
+        energy_j: electrical energy the motors drew during the attempt (J).
+        tracking: tracking error over the second half.
+    """
+
+    features: FloatArray
+    desired: FloatArray
+    activations: FloatArray
+    recording: Recording
+    reward_mm: float
+    energy_j: float
+    tracking: TrackingError
+
+
+def plan_attempt(features: ArrayLike, inverse_map: InverseMap,
+                 cycle: LimitCycleConfig) -> tuple[FloatArray, FloatArray]:
+    """Target kinematics of an attempt and the activations the inverse map predicts for them.
+
+    Args:
+        features: spoke lengths, shape (n_spokes,), within the cycle's feature bounds.
+        inverse_map: a fitted map.
+        cycle: the limit-cycle parameters (shape, timing, cycles per attempt).
+
+    Returns:
+        (desired kinematics (N, 6), activations (N, 3) in [activation_low, activation_high]), N = cycles x
+        ticks per cycle.
+
+    Raises:
+        ValueError: invalid features (the message names the index and value).
+    """
+    desired = attempt_kinematics(features, cycle)
+    return desired, inverse_map.predict(desired)
+
+
+def tracking_error(desired_rad: ArrayLike, actual_rad: ArrayLike) -> TrackingError:
+    """Tracking error over the second half of an attempt, tick by tick.
+
+    Args:
+        desired_rad: target joint angles, shape (N, 2) (rad).
+        actual_rad: measured joint angles at the same ticks, shape (N, 2) (rad).
+    """
+    d = np.asarray(desired_rad, dtype=np.float64)
+    a = np.asarray(actual_rad, dtype=np.float64)
+    if d.shape != a.shape or d.ndim != 2 or d.shape[0] < 2:
+        raise ValueError(f"desired and actual angles must both have shape (N >= 2, 2), got {d.shape}, {a.shape}")
+    err = (a - d)[len(d) // 2:]
+    return TrackingError(mse_deg2=float(np.sum(np.mean(np.degrees(err) ** 2, axis=0))),
+                         rmse_rad=float(np.sqrt(np.mean(err**2))))
+
+
+def run_attempt(rig: Rig, inverse_map: InverseMap, features: ArrayLike, cycle: LimitCycleConfig,
+                progress: ProgressCallback | None = None, cancel: threading.Event | None = None) -> AttemptOutcome:
+    """Reset the rig to rest and play one attempt on it.
+
+    Args:
+        rig: the rig (in-process plant or ROS rig contract).
+        inverse_map: a fitted map.
+        features: spoke lengths, shape (n_spokes,), within the cycle's feature bounds.
+        cycle: the limit-cycle parameters.
+        progress: called with (ticks done, ticks total).
+        cancel: when set, the rig drops to baseline and RigCancelled is raised.
+
+    Raises:
+        ValueError: invalid features.
+        RigError: the rig failed (RigCancelled when cancelled).
+    """
+    f = np.array(features, dtype=np.float64)
+    desired, activations = plan_attempt(f, inverse_map, cycle)
+    rig.reset()
+    recording = rig.play(activations, progress, cancel)
+    return AttemptOutcome(features=f, desired=desired, activations=activations, recording=recording,
+                          reward_mm=recording.belt_travel_mm, energy_j=recording.energy_used_j,
+                          tracking=tracking_error(desired[:, :2], recording.position_rad))

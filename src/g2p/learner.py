@@ -1,0 +1,137 @@
+"""The G2P learner's memory: every (kinematics, activation) pair it has seen, and the inverse map.
+
+Babbling fits the map; every attempt, good or bad, adds its data (minus the transition from rest) and
+refines the map from its current weights on all data so far (paper, Fig 3).
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from g2p.attempt import AttemptOutcome, run_attempt
+from g2p.babbling import BabblingConfig, babbling_activations
+from g2p.config import require_positive
+from g2p.inverse_map import FitReport, InverseMap, InverseMapConfig
+from g2p.kinematics import PreprocessConfig, TrainingPairs, recording_pairs
+from g2p.limit_cycle import LimitCycleConfig
+from g2p.plant import Recording, concatenate
+from g2p.rig import ProgressCallback, Rig
+
+
+@dataclass(frozen=True)
+class LearnerConfig:
+    """How the learner babbles, preprocesses and fits.
+
+    Attributes:
+        seed: seed of every random choice the learner makes (babbling, weights, splits).
+        babbling_chunk_s: length of each sequence sent to the rig while babbling (s); progress is reported
+            and cancel honoured between chunks.
+        babbling: the babbling session.
+        preprocess: resampling and differentiation.
+        inverse_map: network and training.
+    """
+
+    seed: int = 0
+    babbling_chunk_s: float = 30.0
+    babbling: BabblingConfig = field(default_factory=BabblingConfig)
+    preprocess: PreprocessConfig = field(default_factory=PreprocessConfig)
+    inverse_map: InverseMapConfig = field(default_factory=InverseMapConfig)
+
+    def __post_init__(self) -> None:
+        require_positive(self.babbling_chunk_s, "babbling_chunk_s")
+
+
+@dataclass
+class Dataset:
+    """Training pairs accumulated over a run, in the order they were collected."""
+
+    segments: list[tuple[str, TrainingPairs]] = field(default_factory=list)
+
+    def add(self, label: str, pairs: TrainingPairs) -> None:
+        """Append a segment (e.g. "babbling", "attempt 3")."""
+        self.segments.append((label, pairs))
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """All kinematics (K, 6) and activations (K, 3) so far."""
+        return (np.concatenate([p.kinematics for _, p in self.segments]),
+                np.concatenate([p.activation for _, p in self.segments]))
+
+    def __len__(self) -> int:
+        return sum(len(p) for _, p in self.segments)
+
+
+class Learner:
+    """Babbles, fits, runs attempts and refines; holds the dataset and the inverse map.
+
+    Args:
+        config: learner settings.
+    """
+
+    def __init__(self, config: LearnerConfig | None = None) -> None:
+        self.config = config or LearnerConfig()
+        babble_seq, map_seq = np.random.SeedSequence(self.config.seed).spawn(2)
+        self._babble_rng = np.random.default_rng(babble_seq)
+        self._map_rng = np.random.default_rng(map_seq)
+        self.inverse_map = InverseMap(self.config.inverse_map)
+        self.dataset = Dataset()
+        self.refinements = 0
+        self.babbling_recording: Recording | None = None
+
+    def babble(self, rig: Rig, duration_s: float | None = None, progress: ProgressCallback | None = None,
+               cancel: threading.Event | None = None) -> FitReport:
+        """Babble on the rig from rest, then fit the map on the babbling data (from fresh weights).
+
+        Args:
+            rig: the rig.
+            duration_s: babbling length (s); the config's when None.
+            progress: called with (ticks done, ticks total).
+            cancel: when set, babbling stops and RigCancelled is raised (nothing is fitted).
+        """
+        cfg = self.config
+        n = cfg.babbling.n_samples if duration_s is None else round(duration_s * cfg.babbling.rate_hz)
+        activations = babbling_activations(self._babble_rng, cfg.babbling, n)
+        chunk = max(1, round(cfg.babbling_chunk_s * cfg.babbling.rate_hz))
+        rig.reset()
+        recordings = []
+        for start in range(0, n, chunk):
+            def chunk_progress(done: int, _total: int, start: int = start) -> None:
+                if progress is not None:
+                    progress(start + done, n)
+            recordings.append(rig.play(activations[start:start + chunk], chunk_progress, cancel))
+        if progress is not None:
+            progress(n, n)
+        return self.fit_babbling(recordings)
+
+    def fit_babbling(self, recordings: list[Recording]) -> FitReport:
+        """Replace the dataset by babbling recordings (each a contiguous segment) and fit the map afresh."""
+        self.dataset = Dataset()
+        for rec in recordings:
+            self.dataset.add("babbling", recording_pairs(rec, self.config.preprocess))
+        self.babbling_recording = concatenate(recordings)
+        self.refinements = 0
+        return self.inverse_map.fit(*self.dataset.arrays(), self._map_rng)
+
+    def attempt(self, rig: Rig, features: np.ndarray, cycle: LimitCycleConfig, refine: bool = True,
+                progress: ProgressCallback | None = None,
+                cancel: threading.Event | None = None) -> tuple[AttemptOutcome, FitReport | None]:
+        """Run one attempt and, unless told not to, refine the map with its data.
+
+        Returns:
+            The attempt's outcome, and the refinement's report (None when not refined).
+        """
+        outcome = run_attempt(rig, self.inverse_map, features, cycle, progress, cancel)
+        return outcome, (self.refine_with(outcome.recording, f"attempt {self.refinements + 1}") if refine else None)
+
+    def refine_with(self, recording: Recording, label: str) -> FitReport:
+        """Add an attempt's data (without its transition from rest) and refine the map on all data."""
+        pairs = recording_pairs(recording, self.config.preprocess, self.config.preprocess.transition_fraction)
+        self.dataset.add(label, pairs)
+        self.refinements += 1
+        return self.inverse_map.refine(*self.dataset.arrays(), self._map_rng)
+
+    def frozen_map(self) -> InverseMap:
+        """A copy of the current map, unaffected by later refinements."""
+        return InverseMap.from_arrays(self.inverse_map.to_arrays(), self.inverse_map.config)
