@@ -32,7 +32,9 @@ def require_non_negative(value: float, field: str) -> None:
     require(math.isfinite(value) and value >= 0, field, f"must be a finite number >= 0, got {value!r}")
 
 
-def require_range(low: float, high: float, field: str, lower: float = -math.inf, upper: float = math.inf) -> None:
+def require_range(
+    low: float, high: float, field: str, lower: float = -math.inf, upper: float = math.inf
+) -> None:
     """Require a finite interval lower <= low < high <= upper."""
     require(
         math.isfinite(low) and math.isfinite(high) and lower <= low < high <= upper,

@@ -1,0 +1,721 @@
+"""The inverse map: a 6 -> 15 -> 3 MLP from kinematics to motor activations, fitted and refined in torch.
+
+Inputs are kinematics rows [q_prox, q_dist, dq_prox, dq_dist, ddq_prox, ddq_dist] (rad, rad/s, rad/s^2);
+outputs are activations of M0..M2 in [low, high] = [0.15, 1]. Inputs and targets are normalized column-wise
+(the authors' MATLAB mapminmax: min -> -1, max -> +1) with constants fixed at the initial fit and kept for
+every refinement, so warm-started weights keep their meaning. The hidden layer is tanh; the output layer is
+linear on the normalized targets and `predict` clips to [low, high] (see docs/ALGORITHM.md: targets sit at
+the bounds, where a tanh output would need infinite pre-activations).
+
+Training minimizes the mean squared error on a random training split with early stopping on a held-out
+validation split (the weights of the best validation error are kept); each sample keeps its side of the split
+across refinements. The default optimizer is
+Levenberg-Marquardt, as the authors' MATLAB trainlm; full-batch L-BFGS and minibatch Adam are selectable.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import os
+import time
+import zipfile
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from numpy.typing import ArrayLike, NDArray
+
+from g2p.config import ConfigError, require, require_positive, require_range
+from g2p.safety import BASELINE_ACTIVATION
+
+FloatArray = NDArray[np.float64]
+
+N_INPUTS = 6
+N_OUTPUTS = 3
+FORMAT_VERSION = 1
+"""Version of the `to_arrays` / `save` format; bump on any change of names, shapes or meaning."""
+_KIND = "g2p.inverse_map"
+_ARRAY_SHAPES = {  # name -> shape, with H = hidden units
+    "w_hidden": ("H", N_INPUTS),
+    "b_hidden": ("H",),
+    "w_out": (N_OUTPUTS, "H"),
+    "b_out": (N_OUTPUTS,),
+    "x_offset": (N_INPUTS,),
+    "x_scale": (N_INPUTS,),
+    "y_offset": (N_OUTPUTS,),
+    "y_scale": (N_OUTPUTS,),
+    "activation_range": (2,),
+}
+
+
+class Optimizer(str, enum.Enum):
+    """Training algorithm."""
+
+    LM = "lm"
+    """Levenberg-Marquardt on the full batch (MATLAB trainlm); one iteration = one accepted step."""
+    LBFGS = "lbfgs"
+    """Full-batch L-BFGS with a strong-Wolfe line search; one iteration = one L-BFGS iteration."""
+    ADAM = "adam"
+    """Adam on shuffled minibatches; one iteration = one epoch."""
+
+
+class Normalization(str, enum.Enum):
+    """Column-wise normalization of the inputs and the targets."""
+
+    MINMAX = "minmax"
+    """Map each column's [min, max] to [-1, 1] (the authors' mapminmax)."""
+    ZSCORE = "zscore"
+    """Subtract each column's mean and divide by its standard deviation."""
+
+
+class StopReason(str, enum.Enum):
+    """Why training stopped."""
+
+    VALIDATION = "validation"
+    """The validation error did not improve for `patience` consecutive iterations."""
+    MAX_ITERATIONS = "max_iterations"
+    """The iteration budget ran out."""
+    CONVERGED = "converged"
+    """No step lowers the training error any more (LM damping at its maximum, or L-BFGS converged)."""
+
+
+class InverseMapError(ValueError):
+    """The inverse map cannot do what was asked (not fitted, wrong data shape)."""
+
+
+class InverseMapFormatError(InverseMapError):
+    """Stored weights are corrupt, incomplete or of another format version."""
+
+
+@dataclass(frozen=True)
+class InverseMapConfig:
+    """Network and training parameters (defaults: the paper's network, MATLAB trainlm's training)."""
+
+    n_hidden: int = 15
+    """Hidden tanh units."""
+    activation_low: float = BASELINE_ACTIVATION
+    """Lowest activation `predict` returns (dimensionless): the baseline tension."""
+    activation_high: float = 1.0
+    """Highest activation `predict` returns (dimensionless)."""
+    normalization: Normalization = Normalization.MINMAX
+    """Input and target normalization, fixed at the initial fit."""
+    validation_fraction: float = 0.15
+    """Share of the samples held out for early stopping (MATLAB's default split: 15%)."""
+    optimizer: Optimizer = Optimizer.LM
+    """Training algorithm (chosen by benchmarks/bench_inverse_map.py)."""
+    max_iterations_fit: int = 300
+    """Iteration budget of the initial fit. MATLAB's default is 1000 epochs; LM stops on validation after
+    100-280 iterations on 5 min of babbling, and 300 keeps the fit of 23,400 samples under 5 s on one core."""
+    max_iterations_refine: int = 10
+    """Iteration budget of one refinement (keeps a refinement on ~70,000 samples under 1 s on one core)."""
+    patience: int = 6
+    """Consecutive iterations without a better validation error before stopping (MATLAB's max_fail)."""
+    lm_mu: float = 1e-3
+    """Initial Levenberg-Marquardt damping (MATLAB's mu)."""
+    lm_mu_decrease: float = 0.1
+    """Damping factor after an accepted step (MATLAB's mu_dec)."""
+    lm_mu_increase: float = 10.0
+    """Damping factor after a rejected step (MATLAB's mu_inc)."""
+    lm_mu_max: float = 1e10
+    """Damping at which LM gives up (MATLAB's mu_max)."""
+    lbfgs_history: int = 20
+    """L-BFGS memory (pairs of steps)."""
+    adam_learning_rate: float = 1e-2
+    """Adam step size (normalized units)."""
+    adam_batch_size: int = 1024
+    """Adam minibatch size (samples)."""
+    num_threads: int = 1
+    """Torch intra-op threads while training; 0 leaves torch's setting alone. One thread is the default: on a
+    shared 2-core machine, two OpenMP threads sometimes stall for seconds (docs/ALGORITHM.md)."""
+
+    def __post_init__(self) -> None:
+        for name, kind in (("normalization", Normalization), ("optimizer", Optimizer)):
+            value = getattr(self, name)
+            try:
+                object.__setattr__(self, name, kind(value))
+            except ValueError as err:
+                raise ConfigError(f"{name}: must be one of {[m.value for m in kind]}, got {value!r}") from err
+        require(self.n_hidden >= 1, "n_hidden", f"must be >= 1, got {self.n_hidden}")
+        require_range(self.activation_low, self.activation_high, "activation_low, activation_high", 0.0, 1.0)
+        require(
+            0.0 < self.validation_fraction < 0.5,
+            "validation_fraction",
+            f"must be in (0, 0.5), got {self.validation_fraction}",
+        )
+        require(
+            self.max_iterations_fit >= 1, "max_iterations_fit", f"must be >= 1, got {self.max_iterations_fit}"
+        )
+        require(
+            self.max_iterations_refine >= 1,
+            "max_iterations_refine",
+            f"must be >= 1, got {self.max_iterations_refine}",
+        )
+        require(self.patience >= 1, "patience", f"must be >= 1, got {self.patience}")
+        require_positive(self.lm_mu, "lm_mu")
+        require(
+            0.0 < self.lm_mu_decrease < 1.0, "lm_mu_decrease", f"must be in (0, 1), got {self.lm_mu_decrease}"
+        )
+        require(self.lm_mu_increase > 1.0, "lm_mu_increase", f"must be > 1, got {self.lm_mu_increase}")
+        require(
+            self.lm_mu_max > self.lm_mu,
+            "lm_mu_max",
+            f"must exceed lm_mu ({self.lm_mu}), got {self.lm_mu_max}",
+        )
+        require(self.lbfgs_history >= 1, "lbfgs_history", f"must be >= 1, got {self.lbfgs_history}")
+        require_positive(self.adam_learning_rate, "adam_learning_rate")
+        require(self.adam_batch_size >= 1, "adam_batch_size", f"must be >= 1, got {self.adam_batch_size}")
+        require(self.num_threads >= 0, "num_threads", f"must be >= 0, got {self.num_threads}")
+
+
+@dataclass(frozen=True)
+class FitReport:
+    """What one fit or refinement did.
+
+    Attributes:
+        n_train: training samples.
+        n_validation: validation samples.
+        iterations: iterations run (see `Optimizer` for what one is).
+        best_iteration: iteration whose weights were kept (0: the starting weights).
+        train_rmse: RMS error on the training split with the kept weights (activation units, unclipped).
+        validation_rmse: the same on the validation split.
+        seconds: wall-clock time (s).
+        stop_reason: why training stopped.
+    """
+
+    n_train: int
+    n_validation: int
+    iterations: int
+    best_iteration: int
+    train_rmse: float
+    validation_rmse: float
+    seconds: float
+    stop_reason: StopReason
+
+
+@dataclass(frozen=True)
+class _Scaling:
+    """x_normalized = (x - offset) / scale, column-wise."""
+
+    offset: FloatArray
+    scale: FloatArray
+
+    @classmethod
+    def of(cls, data: FloatArray, kind: Normalization) -> _Scaling:
+        if kind is Normalization.MINMAX:
+            lo, hi = data.min(axis=0), data.max(axis=0)
+            offset, scale = (hi + lo) / 2.0, (hi - lo) / 2.0
+        else:
+            offset, scale = data.mean(axis=0), data.std(axis=0)
+        # A constant column carries no information; a unit scale keeps it harmless instead of dividing by 0.
+        return cls(offset, np.where(scale > 1e-12 * np.maximum(1.0, np.abs(offset)), scale, 1.0))
+
+    def forward(self, data: FloatArray) -> FloatArray:
+        return (data - self.offset) / self.scale
+
+    def inverse(self, data: FloatArray) -> FloatArray:
+        return data * self.scale + self.offset
+
+
+class InverseMap:
+    """Kinematics (N, 6) -> activations (N, 3), fitted on babbling and refined on every attempt.
+
+    Args:
+        config: network and training parameters; the defaults when None.
+    """
+
+    def __init__(self, config: InverseMapConfig | None = None) -> None:
+        self.config = config or InverseMapConfig()
+        # w_hidden (H, 6), b_hidden (H,), w_out (3, H), b_out (3,)
+        self._params: list[torch.Tensor] | None = None
+        self._x: _Scaling | None = None
+        self._y: _Scaling | None = None
+        self._is_validation: NDArray[np.bool_] | None = None  # the split of every sample seen so far
+        self.last_report: FitReport | None = None
+        """Report of the latest fit or refinement (None before the first)."""
+
+    @property
+    def is_fitted(self) -> bool:
+        """Whether weights and normalization exist (after `fit` or loading)."""
+        return self._params is not None
+
+    @property
+    def validation_mask(self) -> NDArray[np.bool_] | None:
+        """Which of the samples trained on so far are held out, shape (N,) (a copy); None before training."""
+        return None if self._is_validation is None else self._is_validation.copy()
+
+    def fit(self, x: ArrayLike, y: ArrayLike, rng: np.random.Generator) -> FitReport:
+        """Initial fit from fresh random weights; fixes the normalization for all later refinements.
+
+        Args:
+            x: kinematics, shape (N, 6) (rad, rad/s, rad/s^2), finite.
+            y: activations that produced them, shape (N, 3), finite.
+            rng: source of the weight initialization, the validation split and minibatch order.
+
+        Returns:
+            What the fit did (also kept in `last_report`).
+
+        Raises:
+            InverseMapError: wrong shapes, non-finite values or too few samples.
+        """
+        xa, ya = _check_data(x, y, self.config)
+        self._x = _Scaling.of(xa, self.config.normalization)
+        self._y = _Scaling.of(ya, self.config.normalization)
+        self._params = _init_params(self.config.n_hidden, rng)
+        self._is_validation = None
+        return self._train(xa, ya, rng, self.config.max_iterations_fit)
+
+    def refine(self, x_all: ArrayLike, y_all: ArrayLike, rng: np.random.Generator) -> FitReport:
+        """Continue training from the current weights on all data so far (babbling + every attempt).
+
+        The normalization of the initial fit is kept, and so is each sample's side of the train/validation
+        split: the first rows are expected to be the data of the previous fit or refinement (data only grow),
+        only the new rows are split at random. The starting weights then never saw the validation samples,
+        so early stopping measures progress honestly (re-splitting would put samples already trained on into
+        the validation set and often stop before the first step).
+
+        Args:
+            x_all: kinematics, shape (N, 6), finite; N at least the number of samples of the previous call.
+            y_all: activations, shape (N, 3), finite.
+            rng: source of the validation split and minibatch order.
+
+        Returns:
+            What the refinement did (also kept in `last_report`).
+
+        Raises:
+            InverseMapError: not fitted yet, wrong shapes, non-finite values, or fewer samples than before.
+        """
+        self._require_fitted()
+        xa, ya = _check_data(x_all, y_all, self.config)
+        if self._is_validation is not None and len(xa) < len(self._is_validation):
+            raise InverseMapError(
+                f"x_all: refine needs all data so far, got {len(xa)} samples after {len(self._is_validation)}"
+            )
+        return self._train(xa, ya, rng, self.config.max_iterations_refine)
+
+    def predict(self, x: ArrayLike) -> FloatArray:
+        """Activations for kinematics, clipped to [activation_low, activation_high].
+
+        Args:
+            x: kinematics, shape (N, 6) or (6,) (rad, rad/s, rad/s^2).
+
+        Returns:
+            Activations, shape (N, 3) (or (3,) for a single row).
+
+        Raises:
+            InverseMapError: not fitted, wrong shape or non-finite input.
+        """
+        params, xs, ys = self._require_fitted()
+        xa = np.asarray(x, dtype=np.float64)
+        single = xa.ndim == 1
+        xa = np.atleast_2d(xa)
+        if xa.ndim != 2 or xa.shape[1] != N_INPUTS:
+            raise InverseMapError(f"x: expected shape (N, {N_INPUTS}), got {np.shape(x)}")
+        if not np.all(np.isfinite(xa)):
+            raise InverseMapError("x: non-finite values")
+        w1, b1, w2, b2 = (p.detach().numpy() for p in params)
+        out = ys.inverse(np.tanh(xs.forward(xa) @ w1.T + b1) @ w2.T + b2)
+        out = np.clip(out, self.config.activation_low, self.config.activation_high)
+        return out[0] if single else out
+
+    def to_arrays(self) -> dict[str, FloatArray]:
+        """Weights, normalization and activation range as named float64 arrays, plus `format_version`.
+
+        Returns:
+            {'format_version': [1], 'w_hidden': (H, 6), 'b_hidden': (H,), 'w_out': (3, H), 'b_out': (3,),
+            'x_offset': (6,), 'x_scale': (6,), 'y_offset': (3,), 'y_scale': (3,), 'activation_range': (2,)};
+            a model's input is normalized as (x - x_offset) / x_scale and its output denormalized as
+            y * y_scale + y_offset.
+        """
+        params, xs, ys = self._require_fitted()
+        w1, b1, w2, b2 = (p.detach().numpy().copy() for p in params)
+        return {
+            "format_version": np.array([float(FORMAT_VERSION)]),
+            "w_hidden": w1,
+            "b_hidden": b1,
+            "w_out": w2,
+            "b_out": b2,
+            "x_offset": xs.offset.copy(),
+            "x_scale": xs.scale.copy(),
+            "y_offset": ys.offset.copy(),
+            "y_scale": ys.scale.copy(),
+            "activation_range": np.array([self.config.activation_low, self.config.activation_high]),
+        }
+
+    @classmethod
+    def from_arrays(
+        cls, arrays: Mapping[str, ArrayLike], config: InverseMapConfig | None = None, source: str = "arrays"
+    ) -> InverseMap:
+        """Rebuild a map from `to_arrays` output.
+
+        Args:
+            arrays: the named arrays.
+            config: training parameters for later refinements; n_hidden and the activation range come from
+                the arrays.
+            source: what the arrays came from, for error messages (e.g. a file name).
+
+        Raises:
+            InverseMapFormatError: missing or extra names, wrong version, shapes or non-finite values.
+        """
+        version = np.asarray(arrays.get("format_version", np.array([])), dtype=np.float64).ravel()
+        if version.shape != (1,) or version[0] != FORMAT_VERSION:
+            raise InverseMapFormatError(
+                f"{source}: format_version {version.tolist()} is not supported (expected [{FORMAT_VERSION}])"
+            )
+        names = set(arrays) - {"format_version", "kind"}
+        if names != set(_ARRAY_SHAPES):
+            raise InverseMapFormatError(
+                f"{source}: missing {sorted(set(_ARRAY_SHAPES) - names)}, "
+                f"unexpected {sorted(names - set(_ARRAY_SHAPES))}"
+            )
+        a = {k: np.asarray(arrays[k], dtype=np.float64) for k in _ARRAY_SHAPES}
+        hidden = a["w_hidden"].shape[0] if a["w_hidden"].ndim == 2 else -1
+        for name, shape in _ARRAY_SHAPES.items():
+            expected = tuple(hidden if d == "H" else d for d in shape)
+            if a[name].shape != expected:
+                raise InverseMapFormatError(
+                    f"{source}: {name} has shape {a[name].shape}, expected {expected}"
+                )
+            if not np.all(np.isfinite(a[name])):
+                raise InverseMapFormatError(f"{source}: {name} has non-finite values")
+        if np.any(a["x_scale"] <= 0) or np.any(a["y_scale"] <= 0):
+            raise InverseMapFormatError(f"{source}: x_scale and y_scale must be > 0")
+        base = config or InverseMapConfig()
+        try:
+            cfg = InverseMapConfig(
+                **{
+                    **base.__dict__,
+                    "n_hidden": hidden,
+                    "activation_low": float(a["activation_range"][0]),
+                    "activation_high": float(a["activation_range"][1]),
+                }
+            )
+        except ConfigError as err:
+            raise InverseMapFormatError(f"{source}: {err}") from err
+        net = cls(cfg)
+        net._params = [torch.tensor(a[k]) for k in ("w_hidden", "b_hidden", "w_out", "b_out")]
+        net._x = _Scaling(a["x_offset"], a["x_scale"])
+        net._y = _Scaling(a["y_offset"], a["y_scale"])
+        return net
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write `to_arrays` to an uncompressed .npz file (written to a temporary name, then renamed).
+
+        Args:
+            path: destination; numpy appends '.npz' when the name has no such suffix.
+        """
+        target = Path(path)
+        if target.suffix != ".npz":
+            target = target.with_name(target.name + ".npz")
+        tmp = target.with_name(target.name + ".tmp.npz")
+        np.savez(tmp, kind=np.array(_KIND), **self.to_arrays())  # type: ignore[arg-type]
+        os.replace(tmp, target)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str], config: InverseMapConfig | None = None) -> InverseMap:
+        """Read a map written by `save`.
+
+        Args:
+            path: the .npz file.
+            config: training parameters for later refinements (see `from_arrays`).
+
+        Raises:
+            InverseMapFormatError: the file is unreadable, not an inverse map, or of another format version;
+                the message names the file.
+        """
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                arrays = {k: data[k] for k in data.files}
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as err:
+            raise InverseMapFormatError(f"{os.fspath(path)}: not a readable .npz file: {err}") from err
+        kind = str(arrays.pop("kind", ""))
+        if kind != _KIND:
+            raise InverseMapFormatError(
+                f"{os.fspath(path)}: not an inverse map (kind {kind!r}, expected {_KIND!r})"
+            )
+        return cls.from_arrays(arrays, config, source=os.fspath(path))
+
+    def _require_fitted(self) -> tuple[list[torch.Tensor], _Scaling, _Scaling]:
+        if self._params is None or self._x is None or self._y is None:
+            raise InverseMapError("the inverse map is not fitted: call fit() or load() first")
+        return self._params, self._x, self._y
+
+    def _train(
+        self, x: FloatArray, y: FloatArray, rng: np.random.Generator, max_iterations: int
+    ) -> FitReport:
+        params, xs, ys = self._require_fitted()
+        cfg = self.config
+        self._is_validation = _extend_split(self._is_validation, len(x), cfg.validation_fraction, rng)
+        val, train = np.flatnonzero(self._is_validation), np.flatnonzero(~self._is_validation)
+        xn, yn = torch.from_numpy(xs.forward(x)), torch.from_numpy(ys.forward(y))
+        split = _Split(xn[train], yn[train], xn[val], yn[val])
+        start = time.perf_counter()
+        with _threads(cfg.num_threads):
+            trainer = {Optimizer.LM: _train_lm, Optimizer.LBFGS: _train_lbfgs, Optimizer.ADAM: _train_adam}
+            theta, iterations, best_iteration, reason = trainer[cfg.optimizer](
+                _flatten(params), split, cfg, max_iterations, rng
+            )
+        self._params = _unflatten(theta, cfg.n_hidden)
+        # Errors in activation units: the normalized error times each output's scale.
+        out_scale = torch.from_numpy(ys.scale)
+        with torch.no_grad():
+            rmse = [
+                float(torch.sqrt(torch.mean(((_forward(theta, cfg.n_hidden, xx) - yy) * out_scale) ** 2)))
+                for xx, yy in ((split.x_train, split.y_train), (split.x_val, split.y_val))
+            ]
+        self.last_report = FitReport(
+            len(train),
+            len(val),
+            iterations,
+            best_iteration,
+            rmse[0],
+            rmse[1],
+            time.perf_counter() - start,
+            reason,
+        )
+        return self.last_report
+
+
+def _check_data(x: ArrayLike, y: ArrayLike, config: InverseMapConfig) -> tuple[FloatArray, FloatArray]:
+    xa, ya = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    if xa.ndim != 2 or xa.shape[1] != N_INPUTS:
+        raise InverseMapError(f"x: expected shape (N, {N_INPUTS}), got {xa.shape}")
+    if ya.shape != (len(xa), N_OUTPUTS):
+        raise InverseMapError(f"y: expected shape ({len(xa)}, {N_OUTPUTS}), got {ya.shape}")
+    if not (np.all(np.isfinite(xa)) and np.all(np.isfinite(ya))):
+        raise InverseMapError("x, y: non-finite values")
+    n_min = math.ceil(2.0 / config.validation_fraction)
+    if len(xa) < n_min:
+        raise InverseMapError(f"x, y: need at least {n_min} samples to hold some out, got {len(xa)}")
+    return xa, ya
+
+
+def _extend_split(
+    is_validation: NDArray[np.bool_] | None, n: int, fraction: float, rng: np.random.Generator
+) -> NDArray[np.bool_]:
+    """Keep the split of the first rows; send new rows to validation so that about `fraction` of all are."""
+    old = np.zeros(0, dtype=bool) if is_validation is None else is_validation
+    n_new = n - len(old)
+    n_val_new = min(n_new, max(0, round(fraction * n) - int(old.sum())))
+    new = np.zeros(n_new, dtype=bool)
+    new[rng.permutation(n_new)[:n_val_new]] = True
+    out = np.concatenate([old, new])
+    if out.all() or not out.any():
+        raise InverseMapError(f"cannot split {n} samples into training and validation")
+    return out
+
+
+def _init_params(n_hidden: int, rng: np.random.Generator) -> list[torch.Tensor]:
+    """Nguyen-Widrow hidden layer (MATLAB's initnw): units spread so their active regions tile [-1, 1]^6."""
+    beta = 0.7 * n_hidden ** (1.0 / N_INPUTS)
+    w1 = rng.uniform(-1.0, 1.0, size=(n_hidden, N_INPUTS))
+    w1 *= beta / np.linalg.norm(w1, axis=1, keepdims=True)
+    b1 = beta * np.linspace(-1.0, 1.0, n_hidden) * np.sign(w1[:, 0]) if n_hidden > 1 else np.zeros(1)
+    w2 = rng.uniform(-1.0, 1.0, size=(N_OUTPUTS, n_hidden)) / math.sqrt(n_hidden)
+    b2 = np.zeros(N_OUTPUTS)
+    return [torch.from_numpy(a) for a in (w1, b1, w2, b2)]
+
+
+def _flatten(params: list[torch.Tensor]) -> torch.Tensor:
+    """Parameter vector: [w_hidden | b_hidden] (H, 7) row-major, then [w_out | b_out] (3, H + 1) row-major."""
+    w1, b1, w2, b2 = (p.detach().to(torch.float64) for p in params)
+    hidden, out = torch.cat([w1, b1[:, None]], 1), torch.cat([w2, b2[:, None]], 1)
+    return torch.cat([hidden.reshape(-1), out.reshape(-1)])
+
+
+def _split_theta(theta: torch.Tensor, n_hidden: int) -> tuple[torch.Tensor, ...]:
+    """Views (w_hidden, b_hidden, w_out, b_out) into a parameter vector."""
+    h = n_hidden
+    hidden = theta[: h * (N_INPUTS + 1)].reshape(h, N_INPUTS + 1)
+    out = theta[h * (N_INPUTS + 1) :].reshape(N_OUTPUTS, h + 1)
+    return hidden[:, :N_INPUTS], hidden[:, N_INPUTS], out[:, :h], out[:, h]
+
+
+def _unflatten(theta: torch.Tensor, n_hidden: int) -> list[torch.Tensor]:
+    return [p.clone() for p in _split_theta(theta.detach(), n_hidden)]
+
+
+def _forward(theta: torch.Tensor, n_hidden: int, x: torch.Tensor) -> torch.Tensor:
+    w1, b1, w2, b2 = _split_theta(theta, n_hidden)
+    return torch.addmm(b2, torch.tanh(torch.addmm(b1, x, w1.T)), w2.T)
+
+
+@contextmanager
+def _threads(n: int) -> Iterator[None]:
+    """Set torch's intra-op threads for the duration (n = 0: leave as is)."""
+    if n == 0:
+        yield
+        return
+    before = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
+@dataclass(frozen=True)
+class _Split:
+    x_train: torch.Tensor
+    y_train: torch.Tensor
+    x_val: torch.Tensor
+    y_val: torch.Tensor
+
+
+class _EarlyStopping:
+    """Keeps the parameters of the best validation error; says when `patience` checks brought none better."""
+
+    def __init__(self, theta: torch.Tensor, split: _Split, n_hidden: int, patience: int) -> None:
+        self.split, self.n_hidden, self.patience = split, n_hidden, patience
+        self.best_theta = theta.detach().clone()
+        self.best_error = self.error(theta)
+        self.best_iteration = 0
+        self.fails = 0
+
+    def error(self, theta: torch.Tensor) -> float:
+        with torch.no_grad():
+            out = _forward(theta, self.n_hidden, self.split.x_val)
+            return float(torch.mean((out - self.split.y_val) ** 2))
+
+    def should_stop(self, theta: torch.Tensor, iteration: int) -> bool:
+        err = self.error(theta)
+        if err < self.best_error:
+            self.best_theta, self.best_error = theta.detach().clone(), err
+            self.best_iteration, self.fails = iteration, 0
+            return False
+        self.fails += 1
+        return self.fails >= self.patience
+
+
+def _train_lm(
+    theta: torch.Tensor, split: _Split, cfg: InverseMapConfig, max_iterations: int, rng: np.random.Generator
+) -> tuple[torch.Tensor, int, int, StopReason]:
+    """Levenberg-Marquardt with MATLAB trainlm's damping schedule and an analytic Gauss-Newton matrix."""
+    del rng  # full batch, deterministic
+    h, x, y = cfg.n_hidden, split.x_train, split.y_train
+    stopper = _EarlyStopping(theta, split, h, cfg.patience)
+    mu = cfg.lm_mu
+    eye = torch.eye(theta.numel(), dtype=torch.float64)
+    hid, res = _hidden_and_residual(theta, h, x, y)
+    sse = float(torch.sum(res * res))
+    for it in range(1, max_iterations + 1):
+        jtj, grad = _gauss_newton(theta, h, x, hid, res)
+        while True:  # raise the damping until a step lowers the training error
+            candidate = theta - torch.linalg.solve(jtj + mu * eye, grad)
+            hid_c, res_c = _hidden_and_residual(candidate, h, x, y)
+            sse_c = float(torch.sum(res_c * res_c))
+            if sse_c < sse:
+                theta, hid, res, sse = candidate, hid_c, res_c, sse_c
+                mu = max(mu * cfg.lm_mu_decrease, 1e-20)
+                break
+            mu *= cfg.lm_mu_increase
+            if mu > cfg.lm_mu_max:
+                return stopper.best_theta, it - 1, stopper.best_iteration, StopReason.CONVERGED
+        if stopper.should_stop(theta, it):
+            return stopper.best_theta, it, stopper.best_iteration, StopReason.VALIDATION
+    return stopper.best_theta, max_iterations, stopper.best_iteration, StopReason.MAX_ITERATIONS
+
+
+def _hidden_and_residual(
+    theta: torch.Tensor, n_hidden: int, x: torch.Tensor, y: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Hidden activations (n, H) and residuals net(x) - y (n, 3)."""
+    w1, b1, w2, b2 = _split_theta(theta, n_hidden)
+    hid = torch.tanh(torch.addmm(b1, x, w1.T))
+    return hid, torch.addmm(b2, hid, w2.T) - y
+
+
+def _gauss_newton(
+    theta: torch.Tensor, n_hidden: int, x: torch.Tensor, hid: torch.Tensor, res: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """J^T J and J^T r of the residuals r = net(x) - y over all outputs, without forming J.
+
+    With d = 1 - h^2, xa = [x, 1] and ha = [h, 1] per sample, output k's Jacobian row is
+    [(w_out[k] * d) (x) xa, e_k (x) ha]. Hence the hidden block of J^T J is (P^T P) * kron(w_out^T w_out, 1)
+    with P = d (x) xa (one product for the three outputs), the output block is kron(I_3, ha^T ha), and the
+    cross block of output k is (P^T ha) * w_out[k] per hidden unit. The products with P are computed in
+    float32 (they only shape the step; every step is accepted on the float64 error); the gradient is float64.
+
+    Args:
+        theta: parameters (see `_flatten`).
+        n_hidden: hidden units H.
+        x: inputs (n, 6).
+        hid: hidden activations at theta (n, H).
+        res: residuals at theta (n, 3).
+    """
+    h_units, n = n_hidden, len(x)
+    _, _, w2, _ = _split_theta(theta, h_units)
+    d = 1.0 - hid * hid
+    ones = torch.ones(n, 1, dtype=x.dtype)
+    xa, ha = torch.cat([x, ones], 1), torch.cat([hid, ones], 1)  # (n, 7), (n, H + 1)
+    grad = torch.cat([((d * (res @ w2)).T @ xa).reshape(-1), (res.T @ ha).reshape(-1)])
+    p = (d.float()[:, :, None] * xa.float()[:, None, :]).reshape(n, -1)  # (n, 7H)
+    p_p, p_ha = (p.T @ p).double(), (p.T @ ha.float()).double()
+    w_rep = w2.repeat_interleave(N_INPUTS + 1, dim=1)  # (3, 7H): w_out[k, j] for each hidden parameter
+    hidden = p_p * torch.kron(w2.T @ w2, torch.ones(N_INPUTS + 1, N_INPUTS + 1, dtype=x.dtype))
+    cross = torch.cat([p_ha * w_rep[k][:, None] for k in range(N_OUTPUTS)], 1)
+    out = torch.kron(torch.eye(N_OUTPUTS, dtype=x.dtype), ha.T @ ha)
+    jtj = torch.cat([torch.cat([hidden, cross], 1), torch.cat([cross.T, out], 1)], 0)
+    return jtj, grad
+
+
+def _train_lbfgs(
+    theta: torch.Tensor, split: _Split, cfg: InverseMapConfig, max_iterations: int, rng: np.random.Generator
+) -> tuple[torch.Tensor, int, int, StopReason]:
+    """Full-batch L-BFGS, one iteration per validation check."""
+    del rng  # full batch, deterministic
+    h = cfg.n_hidden
+    stopper = _EarlyStopping(theta, split, h, cfg.patience)
+    param = theta.detach().clone().requires_grad_(True)
+    opt = torch.optim.LBFGS(
+        [param],
+        lr=1.0,
+        max_iter=1,
+        max_eval=25,
+        history_size=cfg.lbfgs_history,
+        line_search_fn="strong_wolfe",
+        tolerance_grad=1e-12,
+        tolerance_change=1e-15,
+    )
+
+    def closure() -> torch.Tensor:
+        opt.zero_grad()
+        loss = torch.mean((_forward(param, h, split.x_train) - split.y_train) ** 2)
+        loss.backward()  # type: ignore[no-untyped-call]
+        return loss
+
+    previous = param.detach().clone()
+    for it in range(1, max_iterations + 1):
+        opt.step(closure)  # type: ignore[no-untyped-call]
+        current = param.detach()
+        if torch.equal(current, previous):
+            return stopper.best_theta, it, stopper.best_iteration, StopReason.CONVERGED
+        previous = current.clone()
+        if stopper.should_stop(current, it):
+            return stopper.best_theta, it, stopper.best_iteration, StopReason.VALIDATION
+    return stopper.best_theta, max_iterations, stopper.best_iteration, StopReason.MAX_ITERATIONS
+
+
+def _train_adam(
+    theta: torch.Tensor, split: _Split, cfg: InverseMapConfig, max_iterations: int, rng: np.random.Generator
+) -> tuple[torch.Tensor, int, int, StopReason]:
+    """Adam on minibatches shuffled by `rng`, one epoch per validation check."""
+    h = cfg.n_hidden
+    stopper = _EarlyStopping(theta, split, h, cfg.patience)
+    param = theta.detach().clone().requires_grad_(True)
+    opt = torch.optim.Adam([param], lr=cfg.adam_learning_rate)
+    n, bs = len(split.x_train), cfg.adam_batch_size
+    for it in range(1, max_iterations + 1):
+        order = torch.from_numpy(rng.permutation(n))
+        for start in range(0, n, bs):
+            batch = order[start : start + bs]
+            opt.zero_grad()
+            loss = torch.mean((_forward(param, h, split.x_train[batch]) - split.y_train[batch]) ** 2)
+            loss.backward()  # type: ignore[no-untyped-call]
+            opt.step()
+        if stopper.should_stop(param.detach(), it):
+            return stopper.best_theta, it, stopper.best_iteration, StopReason.VALIDATION
+    return stopper.best_theta, max_iterations, stopper.best_iteration, StopReason.MAX_ITERATIONS
