@@ -1,0 +1,272 @@
+"""`MujocoLeg`: the MuJoCo simulation of the tendon-driven leg on its treadmill, as a `g2p.plant.Plant`.
+
+Each `step` is one rig tick: the clamped activations are held for a jittered tick period, the physics is
+sub-stepped within it, and the sample reads what the rig's sensors would read at the end of the tick
+(quantized encoder angles, their finite-difference velocity, the belt odometer, mean motor current and
+power over the tick, cumulative energy). See docs/SIMULATOR.md for the model and its parameters.
+"""
+
+from __future__ import annotations
+
+import math
+from types import TracebackType
+
+import mujoco
+import numpy as np
+
+from g2p.plant import N_MOTORS, FloatArray, TickSample
+from g2p.safety import check_activation, clamp_activation
+from g2p.sim.config import MujocoLegConfig
+from g2p.sim.model import IntArray, LegModel, load_leg_model
+from g2p.sim.motor import electrical_power_w
+from g2p.sim.sensors import TickClock, quantize_angle
+
+# The belt body is a finite box; its slide coordinate is folded back by this much whenever it strays further
+# than this from rest, and the odometer keeps the sum. The box is uniform, so the contact does not change.
+_BELT_WRAP_M = 0.5
+_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+# The resting posture is found by lowering the carriage from this much above its set height (m) ...
+_LOWER_FROM_M = 0.05
+# ... over this long (s), the way the rig's carriage is lowered onto the belt.
+_LOWER_S = 0.5
+
+
+class SimulationError(RuntimeError):
+    """The physics diverged (non-finite state); the plant must be reset before it steps again."""
+
+
+class MujocoLeg:
+    """The simulated rig: a planar two-joint leg driven by three tendons, over a treadmill belt.
+
+    Construction compiles the model and finds the resting posture as the rig does (baseline tension, the
+    carriage lowered onto the belt, `config.settle_s` to settle); it stores that state, and every `reset`
+    returns to it exactly. The belt odometer, the energy meters and the clock run on across resets, as on
+    the rig.
+
+    Args:
+        config: the rig settings (defaults: treadmill mode, 78 Hz with 0.8 ms jitter).
+        rng: generator of the tick jitter; None seeds one from `config.seed`.
+
+    Raises:
+        ConfigError: invalid configuration (raised by MujocoLegConfig).
+        ModelError: the MJCF model lacks an element the plant needs.
+    """
+
+    def __init__(self, config: MujocoLegConfig | None = None, rng: np.random.Generator | None = None) -> None:
+        self.config = config if config is not None else MujocoLegConfig()
+        cfg = self.config
+        self._leg: LegModel = load_leg_model(cfg.resolved_model_path, cfg.carriage_height_m)
+        self._model = self._leg.model
+        self._data = mujoco.MjData(self._model)
+        # Views on the MjData buffers (they stay valid: MjData is never reallocated), to keep ticks cheap.
+        self._qpos, self._qvel = self._data.qpos, self._data.qvel
+        self._act, self._ctrl = self._data.act, self._data.ctrl
+        spool = self._leg.spool_qpos
+        contiguous = bool(np.all(np.diff(spool) == 1))
+        self._spools: slice | IntArray = slice(int(spool[0]), int(spool[-1]) + 1) if contiguous else spool
+        self._clock = TickClock(
+            rng if rng is not None else np.random.default_rng(cfg.seed), cfg.tick_hz, cfg.tick_jitter_s
+        )
+        self._n_sub = cfg.substeps
+        self._baseline = np.full(N_MOTORS, cfg.baseline_activation)
+        motor = self._leg.motor
+        self._i_max = motor.max_current_a
+        # Per-substep scratch: activation (normalised current) and spool angles at the substep boundaries.
+        self._act_hist = np.empty((self._n_sub, N_MOTORS))
+        self._spool_hist = np.empty((self._n_sub + 1, N_MOTORS))
+
+        self._time_s = 0.0
+        self._energy_j = np.zeros(N_MOTORS)
+        self._rest_state = self._settle()
+        self._belt_rest_m = float(self._data.qpos[self._leg.belt_qpos])
+        self._belt_base_m = -self._belt_rest_m  # the odometer reads 0 at the first rest posture
+        self._prev_angle = self._read_angles()
+        self._diverged = False
+        self._closed = False
+
+    # ----------------------------------------------------------------------------------------- Plant API
+    @property
+    def tick_hz(self) -> float:
+        """Nominal tick rate (Hz)."""
+        return self.config.tick_hz
+
+    def reset(self) -> TickSample:
+        """Return to the resting posture (motors at baseline, belt at rest) and return a sample at rest.
+
+        The belt odometer, energy meters and clock are not reset; no time passes.
+        """
+        self._require_open()
+        belt_now = float(self._data.qpos[self._leg.belt_qpos])
+        if np.isfinite(belt_now):
+            self._belt_base_m += belt_now - self._belt_rest_m
+        mujoco.mj_setState(self._model, self._data, self._rest_state, _STATE)
+        mujoco.mj_forward(self._model, self._data)
+        self._diverged = False
+        self._prev_angle = self._read_angles()
+        act = self._data.act.copy()
+        current = act * self._i_max
+        return self._sample(
+            act=self._baseline.copy(),
+            angle=self._prev_angle,
+            velocity=np.zeros(2),
+            current=current,
+            power=electrical_power_w(current, np.zeros(N_MOTORS), self._leg.motor),
+        )
+
+    def step(self, activation: FloatArray) -> TickSample:
+        """Apply activations for one tick and return the tick's sample.
+
+        Args:
+            activation: shape (3,), finite; values are clamped to [baseline, 1] before they are applied.
+
+        Raises:
+            ValueError: the activation is not 3 finite numbers (nothing changes: no time passes).
+            SimulationError: the physics diverged during the tick; call `reset` before stepping again.
+        """
+        self._require_open()
+        commanded = check_activation(activation)  # raises before anything is touched
+        if self._diverged:
+            raise SimulationError("the simulation diverged earlier; call reset() first")
+        applied = clamp_activation(commanded, self.config.baseline_activation)
+        model, data, n = self._model, self._data, self._n_sub
+        qpos, act, spools = self._qpos, self._act, self._spools
+        period = self._clock.next_period()
+        dt = period / n
+        model.opt.timestep = dt
+        self._ctrl[:] = applied
+        act_hist, spool_hist = self._act_hist, self._spool_hist
+        for k in range(n):
+            # Actuator force in a step uses the activation at its start; qpos moves by dt * new qvel, so
+            # torque * spool displacement is the exact work of the step.
+            act_hist[k] = act
+            spool_hist[k] = qpos[spools]
+            mujoco.mj_step(model, data)
+        spool_hist[n] = qpos[spools]
+        if not math.isfinite(qpos.sum() + self._qvel.sum()):
+            self._diverged = True
+            raise SimulationError(
+                f"the simulation diverged at t = {self._time_s + period:.4f} s; call reset()"
+            )
+
+        current = act_hist * self._i_max  # (n, 3) A
+        spool_speed = (spool_hist[1:] - spool_hist[:-1]) * (1.0 / dt)  # (n, 3) rad/s, mean over each substep
+        power = electrical_power_w(current, spool_speed, self._leg.motor)  # (n, 3) W
+        power_sum = power.sum(axis=0)
+        self._energy_j += power_sum * dt
+        self._time_s += period
+        self._wrap_belt()
+        angle = self._read_angles()
+        velocity = (angle - self._prev_angle) * (1.0 / period)  # what the driver computes from encoder counts
+        self._prev_angle = angle
+        return self._sample(
+            act=applied, angle=angle, velocity=velocity, current=current.sum(axis=0) / n, power=power_sum / n
+        )
+
+    def close(self) -> None:
+        """Drop the motors to baseline and refuse further steps."""
+        self._data.ctrl[:] = self._baseline
+        self._closed = True
+
+    def __enter__(self) -> MujocoLeg:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+    # ----------------------------------------------------------------------------------------- diagnostics
+    @property
+    def model(self) -> mujoco.MjModel:
+        """The compiled MuJoCo model (for viewers and diagnostics; do not change it while stepping)."""
+        return self._model
+
+    @property
+    def data(self) -> mujoco.MjData:
+        """The MuJoCo state (for viewers and diagnostics; do not change it)."""
+        return self._data
+
+    @property
+    def leg_model(self) -> LegModel:
+        """The model with the addresses and motor constants the plant uses."""
+        return self._leg
+
+    @property
+    def time_s(self) -> float:
+        """The plant clock: simulated time since construction, across resets (s)."""
+        return self._time_s
+
+    @property
+    def true_position_rad(self) -> FloatArray:
+        """Joint angles before encoder quantization, shape (2,) (rad)."""
+        return np.array(self._data.qpos[self._leg.joint_qpos], dtype=np.float64)
+
+    @property
+    def tendon_tension_n(self) -> FloatArray:
+        """Tendon tensions the physics applied in the last substep, shape (3,) (N, M0, M1, M2).
+
+        Read from the spring force on each spool, so a tendon that pushed would show a negative value.
+        """
+        spring = np.array(self._data.qfrc_spring[self._leg.spool_dof], dtype=np.float64)
+        return -spring / self._leg.motor.spool_radius_m
+
+    # ----------------------------------------------------------------------------------------- internals
+    def _settle(self) -> FloatArray:
+        """Find the resting posture as the rig does: hang the leg clear, lower the carriage, let it settle.
+
+        The leg starts straight and motionless with the carriage raised by _LOWER_FROM_M, holds baseline
+        activation for _LOWER_S while the carriage is lowered to its set height at constant speed, then
+        for `settle_s` more. Returns the state reached (the physics is deterministic, so is the state).
+        """
+        model, data, leg, cfg = self._model, self._data, self._leg, self.config
+        mujoco.mj_resetData(model, data)
+        data.act[:] = self._baseline
+        data.ctrl[:] = self._baseline
+        # Pre-wind the spools to the baseline stretch so the tendons start taut, not with a jerk.
+        tension = self._baseline * leg.motor.max_tension_n
+        slack_end = model.tendon_lengthspring[:, 1]
+        data.qpos[leg.spool_qpos] = (slack_end + tension / model.tendon_stiffness) / leg.motor.spool_radius_m
+        model.opt.timestep = cfg.nominal_period_s / self._n_sub
+        carriage_z = float(model.body_pos[leg.carriage_body, 2])
+        n_lower = max(1, round(_LOWER_S * cfg.tick_hz))
+        for k in range(n_lower + 1):
+            model.body_pos[leg.carriage_body, 2] = carriage_z + _LOWER_FROM_M * (1.0 - k / n_lower)
+            mujoco.mj_step(model, data, self._n_sub)
+        mujoco.mj_step(model, data, round(cfg.settle_s * cfg.tick_hz) * self._n_sub)
+        if not np.isfinite(data.qpos).all():
+            raise SimulationError("the model diverged while settling to its resting posture")
+        data.qvel[leg.belt_dof] = 0.0  # the belt starts each attempt at rest
+        mujoco.mj_forward(model, data)
+        state = np.empty(mujoco.mj_stateSize(model, _STATE))
+        mujoco.mj_getState(model, data, state, _STATE)
+        return state
+
+    def _read_angles(self) -> FloatArray:
+        return quantize_angle(self._qpos[self._leg.joint_qpos], self.config.encoder_bits)
+
+    def _wrap_belt(self) -> None:
+        offset = float(self._qpos[self._leg.belt_qpos]) - self._belt_rest_m
+        if abs(offset) > _BELT_WRAP_M:
+            shift = math.copysign(_BELT_WRAP_M, offset)
+            self._qpos[self._leg.belt_qpos] -= shift
+            self._belt_base_m += shift
+
+    def _sample(
+        self, act: FloatArray, angle: FloatArray, velocity: FloatArray, current: FloatArray, power: FloatArray
+    ) -> TickSample:
+        belt_m = self._belt_base_m + float(self._qpos[self._leg.belt_qpos])
+        return TickSample(
+            t_s=self._time_s,
+            activation=act,
+            position_rad=angle.copy(),
+            velocity_rad_s=velocity,
+            belt_mm=-1000.0 * belt_m,  # + when the belt moves toward -x (pushed backward)
+            belt_velocity_mm_s=-1000.0 * float(self._qvel[self._leg.belt_dof]),
+            current_a=current,
+            power_w=power,
+            energy_j=self._energy_j.copy(),
+        )
+
+    def _require_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("the plant is closed")
