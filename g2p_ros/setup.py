@@ -20,5 +20,12 @@ setup(
     maintainer_email="g2p-rig@example.org",
     description="See package.xml.",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={
+        "console_scripts": [
+            "record = g2p_ros.recorder_node:main",
+            "replay = g2p_ros.replay_node:main",
+            "report = g2p_ros.report_main:main",
+            "recover_bag = g2p_ros.bag_recover_main:main",
+        ]
+    },
 )

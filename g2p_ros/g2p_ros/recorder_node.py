@@ -1,0 +1,262 @@
+"""`ros2 run g2p_ros record`: record the graph's topics into `bags/<run-id>/`, like `ros2 bag record -a`.
+
+The node polls the graph for topics, subscribes to each new one (raw, QoS adapted to its publishers'
+offers) and hands the serialized messages to `g2p.bags.BagWriter`, stamped with the node clock (sim
+time under use_sim_time). SIGINT and SIGTERM stop discovery, write what was already received and
+finalize the bag; after kill -9, `recover_bag bags/<run-id>` makes the bag readable again.
+
+Parameters: see `g2p.bags.config.RecorderConfig` (bags_dir, run_id, include_regex, exclude_regex, ...).
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable
+from datetime import datetime, timezone
+from types import FrameType
+from typing import Any
+
+import numpy as np
+import rclpy
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import Executor, ExternalShutdownException
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rclpy.subscription import Subscription
+from rclpy.topic_endpoint_info import TopicEndpointInfo
+from rosbags.interfaces import Qos
+from std_msgs.msg import String
+
+from g2p.bags import BagError, InterfaceError, InterfaceLibrary, TopicSpec, TypeRegistry, ament_share_dirs
+from g2p.bags.config import RecorderConfig
+from g2p.bags.qos import EndpointQos, make_qos, recording_qos
+from g2p.bags.writer import create_run_bag
+from g2p.config import ConfigError
+from g2p_ros.params import config_as_dict, declare_config
+
+# Latched configuration topic (`~/config`), the convention every G2P node follows.
+CONFIG_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
+
+def message_class(msgtype: str) -> Any:
+    """The generated Python class of a message type name.
+
+    Args:
+        msgtype: "package/msg/Name", or an action's "package/action/Name_Goal" (_Result, _Feedback).
+
+    Raises:
+        ImportError: the package is not installed or has no such type.
+    """
+    pkg, kind, name = msgtype.split("/")
+    module = importlib.import_module(f"{pkg}.{kind}")
+    if kind == "action":
+        base, _, part = name.rpartition("_")
+        found = getattr(getattr(module, base, None), part, None)
+    else:
+        found = getattr(module, name, None)
+    if found is None:
+        raise ImportError(f"no Python class for {msgtype}")
+    return found
+
+
+def offered_qos(info: TopicEndpointInfo) -> Qos:
+    """A publisher's offered QoS (from graph discovery) as the bag stores it."""
+    p = info.qos_profile
+    return make_qos(
+        int(p.history),
+        int(p.depth),
+        int(p.reliability),
+        int(p.durability),
+        p.deadline.nanoseconds,
+        p.lifespan.nanoseconds,
+        int(p.liveliness),
+        p.liveliness_lease_duration.nanoseconds,
+        bool(p.avoid_ros_namespace_conventions),
+    )
+
+
+def qos_profile(qos: EndpointQos) -> QoSProfile:
+    """An rclpy QoS profile from the policies the core chose."""
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_ALL if qos.keep_all else HistoryPolicy.KEEP_LAST,
+        depth=qos.depth,
+        reliability=ReliabilityPolicy.RELIABLE if qos.reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if qos.transient_local else DurabilityPolicy.VOLATILE,
+    )
+
+
+class RecorderNode(Node):
+    """Discovers topics, subscribes to them raw and writes every message into the run's bag."""
+
+    def __init__(self) -> None:
+        super().__init__("recorder")
+        self.config = declare_config(self, RecorderConfig)
+        self._selection = self.config.selection()
+        self._types = TypeRegistry(InterfaceLibrary(ament_share_dirs()))
+        self.bag = create_run_bag(
+            self.config.bags_dir,
+            datetime.now(timezone.utc),
+            np.random.default_rng(),
+            self.config.run_id,
+            {"g2p.recorder": self.get_fully_qualified_name()},
+        )
+        self.run_id = self.bag.path.name
+        self.received = 0
+        # Message timestamps: the node clock. Without sim time it is the system clock, read directly (faster).
+        clock = self.get_clock()
+        self._now_ns: Callable[[], int] = (
+            (lambda: clock.now().nanoseconds) if self.get_parameter("use_sim_time").value else time.time_ns
+        )
+        self._early: list[tuple[Any, bytes]] = []
+        self._recorded: dict[str, Subscription] = {}
+        self._ignored: set[str] = set()
+        self._config_pub = self.create_publisher(String, "~/config", CONFIG_QOS)
+        self._config_pub.publish(
+            String(
+                data=json.dumps(
+                    {**config_as_dict(self.config), "run_id": self.run_id, "bag": str(self.bag.path)},
+                    sort_keys=True,
+                )
+            )
+        )
+        # Wall-clock timers: under use_sim_time, ROS-time timers would stall until /clock runs.
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._discovery = self.create_timer(self.config.discovery_period_s, self.discover, clock=steady)
+        self._chunks = self.create_timer(self.config.chunk_period_s, self.bag.close_chunk, clock=steady)
+        self.get_logger().info(f"recording run {self.run_id} into {self.bag.path}")
+        self.discover()
+
+    def discover(self) -> None:
+        """Subscribe to every selected topic that has publishers and is not recorded yet."""
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self._recorded or topic in self._ignored or not self._selection.matches(topic):
+                continue
+            if len(types) != 1:
+                self._ignore(topic, f"it has several types ({', '.join(types)})")
+                continue
+            publishers = self.get_publishers_info_by_topic(topic)
+            if publishers:  # wait for a publisher: its QoS decides the subscription's
+                self._record(topic, types[0], publishers)
+
+    def _record(self, topic: str, msgtype: str, publishers: list[TopicEndpointInfo]) -> None:
+        try:
+            cls = message_class(msgtype)
+            definition = self._types.definition(msgtype)
+        except (ImportError, ValueError, InterfaceError) as err:
+            self._ignore(topic, f"its type {msgtype} is not available here: {err}")
+            return
+        for info in publishers:
+            offered = str(info.topic_type_hash)
+            if info.topic_type_hash.version == 1 and offered != definition.rihs01:
+                self.get_logger().error(
+                    f"{topic}: publisher {info.node_namespace}/{info.node_name} uses type hash {offered}, "
+                    f"the installed {msgtype} has {definition.rihs01}: recording with the installed one"
+                )
+        offers = [offered_qos(info) for info in publishers]
+        handle = self.bag.add_topic(TopicSpec(topic, definition, tuple(offers)))
+        qos = recording_qos(offers, self.config.queue_depth)
+        self._recorded[topic] = self.create_subscription(
+            cls, topic, self._writer(handle), qos_profile(qos), raw=True
+        )
+        self.get_logger().info(
+            f"recording {topic} ({msgtype}, {'reliable' if qos.reliable else 'best effort'}, "
+            f"{'transient local' if qos.transient_local else 'volatile'})"
+        )
+
+    def _writer(self, handle: Any) -> Callable[[bytes], None]:
+        bag, now_ns, early = self.bag, self._now_ns, self._early
+
+        def on_message(data: bytes) -> None:
+            t = now_ns()
+            if t == 0:  # sim time before the first /clock message: hold until the clock runs
+                early.append((handle, data))
+            else:
+                if early:
+                    self._write_early(t)
+                bag.write(handle, t, data)
+            self.received += 1
+
+        return on_message
+
+    def _write_early(self, timestamp_ns: int) -> None:
+        """Write the messages held while sim time had not started, stamped `timestamp_ns`."""
+        for handle, data in self._early:
+            self.bag.write(handle, timestamp_ns, data)
+        self._early.clear()
+
+    def _ignore(self, topic: str, why: str) -> None:
+        self._ignored.add(topic)
+        self.get_logger().warning(f"not recording {topic}: {why}")
+
+    def drain(self, executor: Executor, timeout_s: float) -> None:
+        """Stop discovering and write the messages already received, until none arrives for 0.1 s."""
+        self._discovery.cancel()
+        deadline = time.monotonic() + timeout_s
+        before = -1
+        while before != self.received and time.monotonic() < deadline:
+            before = self.received
+            executor.spin_once(timeout_sec=0.1)
+
+    def close_bag(self) -> None:
+        """Finalize the bag (idempotent)."""
+        if self.bag.closed:
+            return
+        self._write_early(0)  # sim time never started: the node clock read 0 all along
+        self.bag.close()
+        self.get_logger().info(
+            f"closed {self.bag.path}: {self.bag.message_count} messages on "
+            f"{len(self.bag.topic_counts)} topics"
+        )
+
+    def destroy_node(self) -> None:
+        """Finalize the bag, then destroy the node."""
+        self.close_bag()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> None:
+    """Record until SIGINT or SIGTERM, then write what was received and finalize the bag.
+
+    SIGINT and SIGTERM only set a flag, so the bag is never closed in the middle of a write.
+    """
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+
+    def request_stop(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, request_stop)
+    signal.signal(signal.SIGTERM, request_stop)
+    node = None
+    try:
+        node = RecorderNode()
+        executor = EventsExecutor()  # the Python executors cannot keep up with fast simulation
+        executor.add_node(node)
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+        node.drain(executor, node.config.drain_timeout_s)
+    except (ConfigError, BagError) as err:
+        print(f"record: error: {err}", file=sys.stderr)
+        sys.exit(2)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

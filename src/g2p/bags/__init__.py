@@ -1,0 +1,46 @@
+"""Bag I/O for the G2P rig: record, read, recover, replay planning, training data and run reports.
+
+ROS-free: the ROS nodes in g2p_ros wire subscriptions and publishers and call this package. Bags are
+rosbag2 format version 9 with MCAP storage and zstd-compressed chunks (see docs/BAGS.md).
+"""
+
+from g2p.bags.dataset import AttemptData, RunData, TrainingData, load_run, load_training_data
+from g2p.bags.errors import BagError, BagReadError, BagWriteError, InterfaceError, RecoveryError
+from g2p.bags.interfaces import InterfaceLibrary, TypeDefinition, TypeRegistry, ament_share_dirs
+from g2p.bags.metadata import BagMetadata, TopicInfo, read_metadata
+from g2p.bags.reader import BagReader, DecodedMessage, RawMessage
+from g2p.bags.recover import RecoveryResult, bag_is_complete, recover_bag, recoverable_counts
+from g2p.bags.report import ReportResult, write_report
+from g2p.bags.writer import BagWriter, TopicSpec, create_run_bag
+
+__all__ = [
+    "AttemptData",
+    "BagError",
+    "BagMetadata",
+    "BagReadError",
+    "BagReader",
+    "BagWriteError",
+    "BagWriter",
+    "DecodedMessage",
+    "InterfaceError",
+    "InterfaceLibrary",
+    "RawMessage",
+    "RecoveryError",
+    "RecoveryResult",
+    "ReportResult",
+    "RunData",
+    "TopicInfo",
+    "TopicSpec",
+    "TrainingData",
+    "TypeDefinition",
+    "TypeRegistry",
+    "ament_share_dirs",
+    "bag_is_complete",
+    "create_run_bag",
+    "load_run",
+    "load_training_data",
+    "read_metadata",
+    "recover_bag",
+    "recoverable_counts",
+    "write_report",
+]

@@ -1,0 +1,292 @@
+"""A recorded learning run as data: rig ticks cut into babbling and attempts, learner events, inverse maps.
+
+Segments are cut by the learner's events and the ticks' header stamps (docs/BAGS.md, "Event conventions"):
+
+- a babbling segment: from a "phase_start" event of phase "babbling" to the next "phase_end" event of
+  that phase (or, when missing, to the next event of any kind, or to the end of the recording);
+- attempt k: from its "attempt_start" event to its "attempt_end" event (or, when missing, to the next
+  event, or to the end of the recording).
+
+A segment holds the ticks stamped after the opening event's stamp, up to and including the closing
+event's stamp. The learner stamps events with its clock, which in fast simulation is the stamp of the
+last tick it has seen: shared with the reset sample that follows (simulation time does not advance on
+a reset), and possibly one tick behind when the closing event is sent. So when the closing event's
+detail says how many ticks were played ("ticks", else the rows of "desired_rad"), the segment is that
+many ticks from its start, whatever the closing stamp. When the closing event's detail has
+"first_tick_stamp_ns" (the first played tick's stamp, from the RunActivations result), the segment
+starts exactly there (needed on the hardware, where the rig ticks at baseline between sequences).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from g2p.bags.errors import BagReadError
+from g2p.bags.events import (
+    CONFIG_SUFFIX,
+    CONFIG_TYPE,
+    INVERSE_MAP_TYPE,
+    LEARNER_EVENT_TYPE,
+    FloatArray,
+    InverseMapSnapshot,
+    RunEvent,
+    inverse_map_snapshot,
+    run_event,
+)
+from g2p.bags.reader import BagReader
+from g2p.bags.ticks import TickAssembler, Ticks, rig_topic_names
+from g2p.plant import N_JOINTS, Recording, concatenate
+
+BABBLING = "babbling"
+DEFAULT_RIG_NAMESPACE = "/leg"
+_END_OF_TIME = np.iinfo(np.int64).max
+
+
+@dataclass(frozen=True)
+class AttemptData:
+    """One attempt of a run.
+
+    Attributes:
+        attempt: attempt number (1-based).
+        phase: the phase it belongs to ("exploration", "exploitation", "tracking", ...).
+        start: its attempt_start event.
+        end: its attempt_end event (None when the run stopped during the attempt).
+        recording: the rig ticks of the attempt.
+        desired_position_rad: the desired joint angles, one row per tick, shape (M, 2) (rad), from the
+            events' detail JSON key "desired_rad" (None when not given).
+    """
+
+    attempt: int
+    phase: str
+    start: RunEvent
+    end: RunEvent | None
+    recording: Recording
+    desired_position_rad: FloatArray | None
+
+    @property
+    def reward_mm(self) -> float:
+        """Belt travel of the attempt (mm), NaN when not reported."""
+        return self.end.reward_mm if self.end is not None else float("nan")
+
+    @property
+    def energy_j(self) -> float:
+        """Electrical energy of the attempt (J), NaN when not reported."""
+        return self.end.energy_j if self.end is not None else float("nan")
+
+    @property
+    def tracking_mse_deg2(self) -> float:
+        """Tracking MSE of the attempt (deg^2), NaN when not reported."""
+        return self.end.tracking_mse_deg2 if self.end is not None else float("nan")
+
+
+@dataclass(frozen=True)
+class RunData:
+    """Everything a report needs from a bag.
+
+    Attributes:
+        bag: the bag directory.
+        run_id: the learner's run id (the bag directory's name when no event says).
+        duration_s: recorded duration (s).
+        topic_counts: messages per topic.
+        ticks: every complete rig tick.
+        events: the learner's events, in stamp order.
+        babbling_segments: each babbling phase's ticks, in order.
+        attempts: the attempts, in order.
+        inverse_maps: the inverse-map snapshots, in stamp order.
+        configs: each node's configuration (topic -> parsed JSON) from the latched `~/config` topics.
+    """
+
+    bag: Path
+    run_id: str
+    duration_s: float
+    topic_counts: dict[str, int]
+    ticks: Ticks
+    events: list[RunEvent]
+    babbling_segments: list[Recording]
+    attempts: list[AttemptData]
+    inverse_maps: list[InverseMapSnapshot]
+    configs: dict[str, Any]
+
+    @property
+    def babbling(self) -> Recording:
+        """All babbling ticks (the segments end to end)."""
+        return concatenate(self.babbling_segments)
+
+
+@dataclass(frozen=True)
+class TrainingData:
+    """What the learner trains on, recovered from a bag.
+
+    Attributes:
+        babbling: each babbling segment's samples (contiguous ticks), in order.
+        attempts: each attempt's samples, in order.
+        inverse_map: the latest inverse map's arrays (name -> array), None when the bag has none.
+    """
+
+    babbling: list[Recording]
+    attempts: list[Recording]
+    inverse_map: dict[str, FloatArray] | None
+
+
+def load_run(bag: Path | str, rig_namespace: str = DEFAULT_RIG_NAMESPACE) -> RunData:
+    """Read a recorded run.
+
+    Args:
+        bag: the bag directory.
+        rig_namespace: namespace of the rig topics (their names are `<namespace>/joint_states`, ...).
+
+    Raises:
+        BagReadError: the bag cannot be read, or its messages break the rig or learner contract.
+    """
+    with BagReader(bag) as reader:
+        topics = reader.topics
+        rig = rig_topic_names(topics, rig_namespace)
+        role_of = {name: role for role, name in rig.items()}
+        event_topics = [t.name for t in topics.values() if t.msgtype == LEARNER_EVENT_TYPE]
+        map_topics = [t.name for t in topics.values() if t.msgtype == INVERSE_MAP_TYPE]
+        config_topics = [
+            t.name for t in topics.values() if t.msgtype == CONFIG_TYPE and t.name.endswith(CONFIG_SUFFIX)
+        ]
+        assembler = TickAssembler()
+        events: list[RunEvent] = []
+        maps: list[InverseMapSnapshot] = []
+        configs: dict[str, Any] = {}
+        source = str(reader.metadata.storage_files[0]) if reader.metadata.storage_files else str(bag)
+        for m in reader.messages([*rig.values(), *event_topics, *map_topics, *config_topics]):
+            if m.topic in role_of:
+                assembler.add(role_of[m.topic], m.msg)
+            elif m.topic in event_topics:
+                events.append(run_event(m.msg, m.timestamp_ns))
+            elif m.topic in map_topics:
+                try:
+                    maps.append(inverse_map_snapshot(m.msg))
+                except ValueError as err:
+                    raise BagReadError(str(err), source) from err
+            else:
+                configs[m.topic] = _parse_config(str(m.msg.data))
+        ticks = assembler.ticks(source)
+        counts = {name: info.message_count for name, info in topics.items()}
+        duration_s = reader.duration_ns * 1e-9
+    events.sort(key=lambda e: (e.stamp_ns, e.log_time_ns))
+    maps.sort(key=lambda s: (s.stamp_ns, s.refinement))
+    run_ids = [e.run_id for e in events if e.run_id]
+    return RunData(
+        bag=Path(bag),
+        run_id=run_ids[0] if run_ids else Path(bag).name,
+        duration_s=duration_s,
+        topic_counts=counts,
+        ticks=ticks,
+        events=events,
+        babbling_segments=_babbling(ticks, events),
+        attempts=_attempts(ticks, events),
+        inverse_maps=maps,
+        configs=configs,
+    )
+
+
+def load_training_data(bag: Path | str, rig_namespace: str = DEFAULT_RIG_NAMESPACE) -> TrainingData:
+    """The babbling and attempt segments of a recorded run, and its latest inverse map.
+
+    Raises:
+        BagReadError: the bag cannot be read, or its messages break the rig or learner contract.
+    """
+    run = load_run(bag, rig_namespace)
+    return TrainingData(
+        babbling=run.babbling_segments,
+        attempts=[a.recording for a in run.attempts],
+        inverse_map=dict(run.inverse_maps[-1].arrays) if run.inverse_maps else None,
+    )
+
+
+def _babbling(ticks: Ticks, events: list[RunEvent]) -> list[Recording]:
+    segments = []
+    for i, start in enumerate(events):
+        if start.phase != BABBLING or start.event != "phase_start":
+            continue
+        later = events[i + 1 :]
+        end = next((e for e in later if e.phase == BABBLING and e.event == "phase_end"), None)
+        closes = end is not None and not any(
+            e.event == "phase_start" and e.stamp_ns < end.stamp_ns for e in later
+        )
+        segments.append(_segment(ticks, start, end if closes else next(iter(later), None), closes))
+    return segments
+
+
+def _attempts(ticks: Ticks, events: list[RunEvent]) -> list[AttemptData]:
+    attempts = []
+    for i, start in enumerate(events):
+        if start.event != "attempt_start":
+            continue
+        later = events[i + 1 :]
+        end = next(
+            (
+                e
+                for e in later
+                if e.event == "attempt_end" and e.attempt == start.attempt and e.run_id == start.run_id
+            ),
+            None,
+        )
+        closing = end if end is not None else next(iter(later), None)
+        recording = _segment(ticks, start, closing, closes=end is not None)
+        phase = start.phase or (end.phase if end is not None else "")
+        attempts.append(AttemptData(start.attempt, phase, start, end, recording, _desired(start, end)))
+    return attempts
+
+
+@dataclass(frozen=True)
+class _Bounds:
+    low_ns: int
+    high_ns: int
+    include_low: bool
+    count: int | None
+
+
+def _bounds(start: RunEvent, end: RunEvent | None, closes: bool) -> _Bounds:
+    """Where the segment opened by `start` and ended by `end` lies.
+
+    Args:
+        start: the opening event.
+        end: the event ending the segment (None: the end of the recording).
+        closes: whether `end` is the segment's own closing event, whose detail describes the segment.
+    """
+    if end is None:
+        return _Bounds(start.stamp_ns, int(_END_OF_TIME), False, None)
+    detail = end.detail if closes else {}
+    first, ticks = detail.get("first_tick_stamp_ns"), detail.get("ticks")
+    desired = _desired(end, None) if closes else None
+    count = ticks if isinstance(ticks, int) else (len(desired) if desired is not None else None)
+    high = int(_END_OF_TIME) if count is not None else end.stamp_ns
+    if isinstance(first, int):
+        return _Bounds(first, high, True, count)
+    return _Bounds(start.stamp_ns, high, False, count)
+
+
+def _segment(ticks: Ticks, start: RunEvent, end: RunEvent | None, closes: bool) -> Recording:
+    b = _bounds(start, end, closes)
+    return ticks.segment(b.low_ns, b.high_ns, b.include_low, b.count)
+
+
+def _desired(start: RunEvent, end: RunEvent | None) -> FloatArray | None:
+    for event in (start, end):
+        value = event.detail.get("desired_rad") if event is not None else None
+        if value is None:
+            continue
+        try:
+            desired = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            continue
+        if desired.ndim == 2 and desired.shape[1] == N_JOINTS:
+            return desired
+    return None
+
+
+def _parse_config(text: str) -> Any:
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        return text
