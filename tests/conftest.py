@@ -17,7 +17,7 @@ def _claim_domain_id() -> int:
     The lock is an flock on a file in /tmp, held until the process exits.
     """
     for domain in range(1, 102):
-        lock = open(Path("/tmp") / f"g2p-ros-domain-{domain}.lock", "w")  # noqa: SIM115 (held for the session)
+        lock = open(Path("/tmp") / f"g2p-ros-domain-{domain}.lock", "w")
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:

@@ -15,22 +15,23 @@ import sys
 import threading
 
 import rclpy
-from g2p.config import ConfigError
 from action_msgs.msg import GoalStatus
-from g2p_interfaces.action import Learn
 from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
+from g2p.config import ConfigError
+from g2p_interfaces.action import Learn
 from g2p_learner.learner_node import LearnerNode
 
 
 def _parse(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="learn", description=__doc__.splitlines()[0])
     parser.add_argument("--serve", action="store_true", help="only host the actions; run no learning run")
-    parser.add_argument("--dataset-bag", default="",
-                        help="build the initial map from this recorded run instead of babbling")
+    parser.add_argument(
+        "--dataset-bag", default="", help="build the initial map from this recorded run instead of babbling"
+    )
     return parser.parse_args(remove_ros_args(argv)[1:])
 
 
@@ -42,15 +43,21 @@ def _show_feedback(msg: Learn.Impl.FeedbackMessage) -> None:
             print()
         return
     sigma = f"  sigma {fb.sigma:.3f}" if fb.sigma > 0 else ""
-    print(f"attempt {fb.attempt:3d}  {fb.phase:<12s} reward {fb.reward_mm:7.1f} mm  "
-          f"best {fb.best_reward_mm:7.1f} mm{sigma}", flush=True)
+    print(
+        f"attempt {fb.attempt:3d}  {fb.phase:<12s} reward {fb.reward_mm:7.1f} mm  "
+        f"best {fb.best_reward_mm:7.1f} mm{sigma}",
+        flush=True,
+    )
 
 
 def _summary(result: Learn.Result, status_ok: bool) -> str:
-    lines = ["", "| run | crossed 64 mm | exploration attempts | exploitation attempts | best reward (mm) |",
-             "| --- | --- | --- | --- | --- |",
-             f"| {result.run_id} | {'yes' if result.crossed_threshold else 'no'} | {result.exploration_attempts} "
-             f"| {result.exploitation_attempts} | {result.best_reward_mm:.1f} |"]
+    lines = [
+        "",
+        "| run | crossed 64 mm | exploration attempts | exploitation attempts | best reward (mm) |",
+        "| --- | --- | --- | --- | --- |",
+        f"| {result.run_id} | {'yes' if result.crossed_threshold else 'no'} | {result.exploration_attempts} "
+        f"| {result.exploitation_attempts} | {result.best_reward_mm:.1f} |",
+    ]
     if len(result.best_features) and all(math.isfinite(f) for f in result.best_features):
         lines.append("best features: " + " ".join(f"{f:.3f}" for f in result.best_features))
     if result.bag_path:
@@ -106,6 +113,7 @@ def _run_goal(client: ActionClient, dataset_bag: str, stop: threading.Event) -> 
 
 
 def main(args: list[str] | None = None) -> None:
+    """Entry point of `ros2 run g2p_learner learn`."""
     argv = sys.argv if args is None else args
     options = _parse(argv)
     # Signals are handled here, not by rclpy, so that a running goal is cancelled on the rig (motors to

@@ -18,16 +18,6 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
-from g2p.attempt import AttemptOutcome
-from g2p.config import require, require_positive
-from g2p.experiments import TreadmillRun, evaluate_fixed_map, random_features, treadmill_result
-from g2p.inverse_map import FitReport
-from g2p.learner import Learner, LearnerConfig
-from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig, check_features
-from g2p.rig import RigCancelled, RigError
-from g2p.search import SearchConfig
-from g2p_interfaces.action import Attempt, Babble, Learn, Track
-from g2p_interfaces.msg import InverseMapWeights, LearnerEvent, NamedArray
 from g2p_ros.contract import DEFAULT_NAMESPACE
 from g2p_ros.params import config_json, declare_config
 from g2p_ros.rig_client import RigClient
@@ -38,13 +28,32 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Header, String
 
+from g2p.attempt import AttemptOutcome
+from g2p.config import require, require_positive
+from g2p.experiments import TreadmillRun, evaluate_fixed_map, random_features, treadmill_result
+from g2p.inverse_map import FitReport
+from g2p.learner import Learner, LearnerConfig
+from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig, check_features
+from g2p.rig import RigCancelled, RigError
+from g2p.search import SearchConfig
+from g2p_interfaces.action import Attempt, Babble, Learn, Track
+from g2p_interfaces.msg import InverseMapWeights, LearnerEvent, NamedArray
+
 # Events and maps must reach the recorder whole; the newest map and the configuration stay available to
 # late joiners (transient local).
 EVENT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-MAP_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
-CONFIG_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+MAP_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+CONFIG_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 
 
 def new_run_id() -> str:
@@ -77,8 +86,11 @@ class LearnerNodeConfig:
     search: SearchConfig = field(default_factory=SearchConfig)
 
     def __post_init__(self) -> None:
-        require(0.0 < self.air_feature_low < self.air_feature_high, "air_feature_low, air_feature_high",
-                f"must satisfy 0 < low < high, got ({self.air_feature_low}, {self.air_feature_high})")
+        require(
+            0.0 < self.air_feature_low < self.air_feature_high,
+            "air_feature_low, air_feature_high",
+            f"must satisfy 0 < low < high, got ({self.air_feature_low}, {self.air_feature_high})",
+        )
         require_positive(self.rig_timeout_s, "rig_timeout_s")
 
     @property
@@ -89,8 +101,12 @@ class LearnerNodeConfig:
     @property
     def search_config(self) -> SearchConfig:
         """The search, with the cycle's feature count and bounds."""
-        return replace(self.search, n_features=self.cycle.n_spokes, feature_low=self.cycle.feature_low,
-                       feature_high=self.cycle.feature_high)
+        return replace(
+            self.search,
+            n_features=self.cycle.n_spokes,
+            feature_low=self.cycle.feature_low,
+            feature_high=self.cycle.feature_high,
+        )
 
 
 class GoalRejected(ValueError):
@@ -104,9 +120,12 @@ class LearnerNode(Node):
         super().__init__("learner", namespace=DEFAULT_NAMESPACE)
         search_fields = ("n_features", "feature_low", "feature_high")
         base = declare_config(self, LearnerNodeConfig, exclude=("learner", "cycle", "search"))
-        self.config = replace(base, learner=declare_config(self, LearnerConfig, "learner."),
-                              cycle=declare_config(self, LimitCycleConfig, "cycle."),
-                              search=declare_config(self, SearchConfig, "search.", exclude=search_fields))
+        self.config = replace(
+            base,
+            learner=declare_config(self, LearnerConfig, "learner."),
+            cycle=declare_config(self, LimitCycleConfig, "cycle."),
+            search=declare_config(self, SearchConfig, "search.", exclude=search_fields),
+        )
         self.rig = RigClient(self, self.config.rig_timeout_s)
         self.learner = Learner(self.config.learner)
         self.run_id = self.config.run_id or new_run_id()
@@ -121,9 +140,15 @@ class LearnerNode(Node):
 
         group = ReentrantCallbackGroup()
         self._servers = [
-            ActionServer(self, action, name, execute_callback=self._guarded(action, execute),
-                         goal_callback=self._goal_callback(validate), cancel_callback=self._on_cancel,
-                         callback_group=group)
+            ActionServer(
+                self,
+                action,
+                name,
+                execute_callback=self._guarded(action, execute),
+                goal_callback=self._goal_callback(validate),
+                cancel_callback=self._on_cancel,
+                callback_group=group,
+            )
             for action, name, execute, validate in (
                 (Babble, "babble", self._execute_babble, self._validate_babble),
                 (Attempt, "attempt", self._execute_attempt, self._validate_attempt),
@@ -144,6 +169,7 @@ class LearnerNode(Node):
         return False
 
     def destroy_node(self) -> None:
+        """Destroy the action servers and the rig client, then the node."""
         for server in self._servers:
             server.destroy()
         self.rig.destroy()
@@ -164,11 +190,14 @@ class LearnerNode(Node):
                     return GoalResponse.REJECT
                 self._busy = True
             return GoalResponse.ACCEPT
+
         return callback
 
     def _validate_babble(self, goal: Babble.Goal) -> None:
-        _require_goal(math.isfinite(goal.duration_s) and goal.duration_s >= 0,
-                      f"duration_s must be finite and >= 0, got {goal.duration_s}")
+        _require_goal(
+            math.isfinite(goal.duration_s) and goal.duration_s >= 0,
+            f"duration_s must be finite and >= 0, got {goal.duration_s}",
+        )
 
     def _validate_attempt(self, goal: Attempt.Goal) -> None:
         _check_goal_features(goal.features, self.config.cycle)
@@ -179,11 +208,15 @@ class LearnerNode(Node):
             value = getattr(goal, name)
             _require_goal(math.isfinite(value) and value >= 0, f"{name} must be finite and >= 0, got {value}")
         if goal.dataset_bag:
-            _require_goal(Path(goal.dataset_bag).is_dir(), f"dataset_bag {goal.dataset_bag!r} is not a directory")
+            _require_goal(
+                Path(goal.dataset_bag).is_dir(), f"dataset_bag {goal.dataset_bag!r} is not a directory"
+            )
 
     def _validate_track(self, goal: Track.Goal) -> None:
-        _require_goal(goal.mode in (Track.Goal.MODE_REFINE_ONE, Track.Goal.MODE_GENERALIZATION),
-                      f"mode must be {Track.Goal.MODE_REFINE_ONE} or {Track.Goal.MODE_GENERALIZATION}, got {goal.mode}")
+        _require_goal(
+            goal.mode in (Track.Goal.MODE_REFINE_ONE, Track.Goal.MODE_GENERALIZATION),
+            f"mode must be {Track.Goal.MODE_REFINE_ONE} or {Track.Goal.MODE_GENERALIZATION}, got {goal.mode}",
+        )
         if len(goal.features):
             _check_goal_features(goal.features, self.config.air_cycle)
         _require_goal(self.learner.inverse_map.is_fitted, "no inverse map yet: babble first")
@@ -196,6 +229,7 @@ class LearnerNode(Node):
 
     def _guarded(self, action: type, execute: Callable[[ServerGoalHandle], object]) -> Callable[..., object]:
         """Run a goal; a cancel or rig failure ends it cleanly with a message; always free the learner."""
+
         def run(goal_handle: ServerGoalHandle) -> object:
             self._cancel.clear()
             try:
@@ -211,6 +245,7 @@ class LearnerNode(Node):
             finally:
                 with self._busy_lock:
                     self._busy = False
+
         return run
 
     def _check_cancel(self, goal_handle: ServerGoalHandle) -> None:
@@ -220,6 +255,7 @@ class LearnerNode(Node):
     def _execute_babble(self, goal_handle: ServerGoalHandle) -> Babble.Result:
         def progress(done: int, total: int) -> None:
             goal_handle.publish_feedback(Babble.Feedback(progress=done / total, samples_done=done))
+
         fit = self._babble(goal_handle.request.duration_s or None, progress)
         goal_handle.succeed()
         return Babble.Result(sample_count=len(self.learner.dataset), validation_rmse=fit.validation_rmse)
@@ -228,27 +264,50 @@ class LearnerNode(Node):
         self._event("phase_start", phase="babbling")
         fit = self.learner.babble(self.rig, duration_s, progress, self._cancel)
         self._publish_map(fit)
-        self._event("phase_end", phase="babbling", detail={"samples": len(self.learner.dataset),
-                                                           "validation_rmse": fit.validation_rmse})
+        self._event(
+            "phase_end",
+            phase="babbling",
+            detail={"samples": len(self.learner.dataset), "validation_rmse": fit.validation_rmse},
+        )
         return fit
 
     def _execute_attempt(self, goal_handle: ServerGoalHandle) -> Attempt.Result:
         goal = goal_handle.request
         cycle = replace(self.config.cycle, n_cycles=goal.cycles) if goal.cycles else self.config.cycle
-        outcome, fit = self._attempt(goal_handle, np.asarray(goal.features), cycle, "attempt",
-                                     not goal.skip_refinement, number=self.learner.refinements + 1)
+        outcome, fit = self._attempt(
+            goal_handle,
+            np.asarray(goal.features),
+            cycle,
+            "attempt",
+            not goal.skip_refinement,
+            number=self.learner.refinements + 1,
+        )
         goal_handle.succeed()
-        return Attempt.Result(reward_mm=outcome.reward_mm, energy_j=outcome.energy_j,
-                              tracking_mse_deg2=outcome.tracking.mse_deg2,
-                              tracking_rmse_rad=outcome.tracking.rmse_rad, refined=fit is not None)
+        return Attempt.Result(
+            reward_mm=outcome.reward_mm,
+            energy_j=outcome.energy_j,
+            tracking_mse_deg2=outcome.tracking.mse_deg2,
+            tracking_rmse_rad=outcome.tracking.rmse_rad,
+            refined=fit is not None,
+        )
 
-    def _attempt(self, goal_handle: ServerGoalHandle, features: np.ndarray, cycle: LimitCycleConfig, phase: str,
-                 refine: bool, number: int) -> tuple[AttemptOutcome, FitReport | None]:
+    def _attempt(
+        self,
+        goal_handle: ServerGoalHandle,
+        features: np.ndarray,
+        cycle: LimitCycleConfig,
+        phase: str,
+        refine: bool,
+        number: int,
+    ) -> tuple[AttemptOutcome, FitReport | None]:
         self._event("attempt_start", phase=phase, attempt=number, features=features)
 
         def progress(done: int, total: int) -> None:
             if isinstance(goal_handle.request, Attempt.Goal):
-                goal_handle.publish_feedback(Attempt.Feedback(stage="playing", ticks_done=done, ticks_total=total))
+                goal_handle.publish_feedback(
+                    Attempt.Feedback(stage="playing", ticks_done=done, ticks_total=total)
+                )
+
         outcome, fit = self.learner.attempt(self.rig, features, cycle, refine, progress, self._cancel)
         self._attempt_end(phase, number, outcome)
         if fit is not None:
@@ -258,18 +317,33 @@ class LearnerNode(Node):
     def _execute_learn(self, goal_handle: ServerGoalHandle) -> Learn.Result:
         goal = goal_handle.request
         search = self.config.search_config
-        search = replace(search, threshold_mm=goal.threshold_mm or search.threshold_mm,
-                         max_exploration_attempts=goal.max_exploration_attempts or search.max_exploration_attempts,
-                         exploitation_attempts=goal.exploitation_attempts or search.exploitation_attempts)
-        self._event("run_start", detail={"goal": {"dataset_bag": goal.dataset_bag,
-                                                  "babbling_duration_s": goal.babbling_duration_s},
-                                         "search": json.loads(config_json(search))})
+        search = replace(
+            search,
+            threshold_mm=goal.threshold_mm or search.threshold_mm,
+            max_exploration_attempts=goal.max_exploration_attempts or search.max_exploration_attempts,
+            exploitation_attempts=goal.exploitation_attempts or search.exploitation_attempts,
+        )
+        self._event(
+            "run_start",
+            detail={
+                "goal": {"dataset_bag": goal.dataset_bag, "babbling_duration_s": goal.babbling_duration_s},
+                "search": json.loads(config_json(search)),
+            },
+        )
         if goal.dataset_bag:
             fit = self._fit_from_bag(goal.dataset_bag)
         else:
+
             def progress(done: int, total: int) -> None:
-                goal_handle.publish_feedback(Learn.Feedback(phase="babbling", babbling_progress=done / total,
-                                                            reward_mm=math.nan, best_reward_mm=math.nan))
+                goal_handle.publish_feedback(
+                    Learn.Feedback(
+                        phase="babbling",
+                        babbling_progress=done / total,
+                        reward_mm=math.nan,
+                        best_reward_mm=math.nan,
+                    )
+                )
+
             fit = self._babble(goal.babbling_duration_s or None, progress)
         run = TreadmillRun(self.learner, search, self.config.cycle, self.config.learner.seed)
         while not run.finished:
@@ -278,25 +352,44 @@ class LearnerNode(Node):
             phase = run.search.phase.value
             self._event("attempt_start", phase=phase, attempt=number)
             report = run.next_attempt(self.rig, cancel=self._cancel)
-            self._attempt_end(report.phase.value, report.number, report.outcome, sigma=report.sigma,
-                              best=report.best_reward_mm)
+            self._attempt_end(
+                report.phase.value,
+                report.number,
+                report.outcome,
+                sigma=report.sigma,
+                best=report.best_reward_mm,
+            )
             if report.fit is not None:
                 self._publish_map(report.fit)
-            goal_handle.publish_feedback(Learn.Feedback(
-                phase=report.phase.value, babbling_progress=1.0, attempt=report.number, reward_mm=report.outcome.reward_mm,
-                best_reward_mm=report.best_reward_mm, sigma=report.sigma or 0.0))
+            goal_handle.publish_feedback(
+                Learn.Feedback(
+                    phase=report.phase.value,
+                    babbling_progress=1.0,
+                    attempt=report.number,
+                    reward_mm=report.outcome.reward_mm,
+                    best_reward_mm=report.best_reward_mm,
+                    sigma=report.sigma or 0.0,
+                )
+            )
         result = treadmill_result(run, fit)
-        summary = {"crossed_threshold": result.crossed_threshold, "best_reward_mm": result.best_reward_mm,
-                   "best_features": result.best_features.tolist(),
-                   "exploration_attempts": result.exploration_attempts,
-                   "exploitation_attempts": result.exploitation_attempts}
+        summary = {
+            "crossed_threshold": result.crossed_threshold,
+            "best_reward_mm": result.best_reward_mm,
+            "best_features": result.best_features.tolist(),
+            "exploration_attempts": result.exploration_attempts,
+            "exploitation_attempts": result.exploitation_attempts,
+        }
         self._event("run_end", detail=summary)
         goal_handle.succeed()
-        return Learn.Result(best_features=result.best_features, best_reward_mm=result.best_reward_mm,
-                            crossed_threshold=result.crossed_threshold,
-                            exploration_attempts=result.exploration_attempts,
-                            exploitation_attempts=result.exploitation_attempts, run_id=self.run_id,
-                            bag_path=self.config.bag_path)
+        return Learn.Result(
+            best_features=result.best_features,
+            best_reward_mm=result.best_reward_mm,
+            crossed_threshold=result.crossed_threshold,
+            exploration_attempts=result.exploration_attempts,
+            exploitation_attempts=result.exploitation_attempts,
+            run_id=self.run_id,
+            bag_path=self.config.bag_path,
+        )
 
     def _fit_from_bag(self, bag: str) -> FitReport:
         from g2p.bags.dataset import load_training_data  # only runs reading a bag need the bag library
@@ -307,7 +400,9 @@ class LearnerNode(Node):
         for k, recording in enumerate(data.attempts, start=1):
             fit = self.learner.refine_with(recording, f"attempt {k} from {bag}")
             self._publish_map(fit)
-        self._event("phase_end", phase="babbling", detail={"dataset_bag": bag, "samples": len(self.learner.dataset)})
+        self._event(
+            "phase_end", phase="babbling", detail={"dataset_bag": bag, "samples": len(self.learner.dataset)}
+        )
         return fit
 
     def _execute_track(self, goal_handle: ServerGoalHandle) -> Track.Result:
@@ -316,7 +411,9 @@ class LearnerNode(Node):
         rng = np.random.default_rng(np.random.SeedSequence(self.config.learner.seed).spawn(4)[3])
 
         def feedback(stage: str, index: int, outcome_mse: float) -> None:
-            goal_handle.publish_feedback(Track.Feedback(stage=stage, index=index, tracking_mse_deg2=outcome_mse))
+            goal_handle.publish_feedback(
+                Track.Feedback(stage=stage, index=index, tracking_mse_deg2=outcome_mse)
+            )
 
         if goal.mode == Track.Goal.MODE_REFINE_ONE:
             features = np.asarray(goal.features) if len(goal.features) else random_features(rng, cycle, 1)[0]
@@ -350,33 +447,69 @@ class LearnerNode(Node):
 
     # Publishing ----------------------------------------------------------------------------------------
 
-    def _event(self, event: str, phase: str = "", attempt: int = 0, features: np.ndarray | None = None,
-               detail: dict[str, object] | None = None, **values: float) -> None:
-        msg = LearnerEvent(header=Header(stamp=self.get_clock().now().to_msg()), run_id=self.run_id, event=event,
-                           phase=phase, attempt=attempt,
-                           features=np.asarray(features if features is not None else [], dtype=np.float64),
-                           reward_mm=math.nan, energy_j=math.nan, tracking_mse_deg2=math.nan,
-                           tracking_rmse_rad=math.nan, best_reward_mm=math.nan, sigma=math.nan,
-                           detail=json.dumps(detail or {}))
+    def _event(
+        self,
+        event: str,
+        phase: str = "",
+        attempt: int = 0,
+        features: np.ndarray | None = None,
+        detail: dict[str, object] | None = None,
+        **values: float,
+    ) -> None:
+        msg = LearnerEvent(
+            header=Header(stamp=self.get_clock().now().to_msg()),
+            run_id=self.run_id,
+            event=event,
+            phase=phase,
+            attempt=attempt,
+            features=np.asarray(features if features is not None else [], dtype=np.float64),
+            reward_mm=math.nan,
+            energy_j=math.nan,
+            tracking_mse_deg2=math.nan,
+            tracking_rmse_rad=math.nan,
+            best_reward_mm=math.nan,
+            sigma=math.nan,
+            detail=json.dumps(detail or {}),
+        )
         for name, value in values.items():
             setattr(msg, name, float(value))
         self._events.publish(msg)
 
-    def _attempt_end(self, phase: str, number: int, outcome: AttemptOutcome, sigma: float | None = None,
-                     best: float = math.nan) -> None:
-        self._event("attempt_end", phase=phase, attempt=number, features=outcome.features,
-                    detail={"desired_rad": outcome.desired[:, :2].tolist()},
-                    reward_mm=outcome.reward_mm, energy_j=outcome.energy_j,
-                    tracking_mse_deg2=outcome.tracking.mse_deg2, tracking_rmse_rad=outcome.tracking.rmse_rad,
-                    sigma=math.nan if sigma is None else sigma, best_reward_mm=best)
+    def _attempt_end(
+        self,
+        phase: str,
+        number: int,
+        outcome: AttemptOutcome,
+        sigma: float | None = None,
+        best: float = math.nan,
+    ) -> None:
+        self._event(
+            "attempt_end",
+            phase=phase,
+            attempt=number,
+            features=outcome.features,
+            detail={"desired_rad": outcome.desired[:, :2].tolist()},
+            reward_mm=outcome.reward_mm,
+            energy_j=outcome.energy_j,
+            tracking_mse_deg2=outcome.tracking.mse_deg2,
+            tracking_rmse_rad=outcome.tracking.rmse_rad,
+            sigma=math.nan if sigma is None else sigma,
+            best_reward_mm=best,
+        )
 
     def _publish_map(self, fit: FitReport) -> None:
         arrays = self.learner.inverse_map.to_arrays()
-        self._maps.publish(InverseMapWeights(
-            header=Header(stamp=self.get_clock().now().to_msg()), run_id=self.run_id,
-            refinement=self.learner.refinements, format_version=int(arrays.pop("format_version")[0]),
-            arrays=[NamedArray(name=k, shape=list(v.shape), data=v.ravel()) for k, v in arrays.items()],
-            training_samples=fit.n_train + fit.n_validation, validation_rmse=fit.validation_rmse))
+        self._maps.publish(
+            InverseMapWeights(
+                header=Header(stamp=self.get_clock().now().to_msg()),
+                run_id=self.run_id,
+                refinement=self.learner.refinements,
+                format_version=int(arrays.pop("format_version")[0]),
+                arrays=[NamedArray(name=k, shape=list(v.shape), data=v.ravel()) for k, v in arrays.items()],
+                training_samples=fit.n_train + fit.n_validation,
+                validation_rmse=fit.validation_rmse,
+            )
+        )
 
 
 def _require_goal(condition: bool, reason: str) -> None:

@@ -12,19 +12,26 @@ RUN_ACTIVATIONS = "run_activations"
 RESET = "reset"
 DEFAULT_NAMESPACE = "/leg"
 
-# Rig samples: reliable so a recorder loses nothing, with 2.5 s of ticks of history at 78 Hz to absorb
-# a subscriber's pauses in fast simulation.
+# Rig samples: reliable, so a recorder loses nothing. A reliable writer drops samples its readers have not
+# acknowledged yet once its history is full, and acknowledgements come at heartbeat pace: 10,000 samples
+# (2 min at 78 Hz, 4 s of fast simulation at 30x) cover a reader's longest pauses (docs/BAGS.md).
 SAMPLE_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=200,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
 )
 # Commands: reliable; only the newest matters to the rig.
 COMMAND_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
 )
 # /clock as rosbag2 and Gazebo publish it: any time source subscription (best effort) accepts it.
 CLOCK_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1,
-    reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE,
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.BEST_EFFORT,
+    durability=DurabilityPolicy.VOLATILE,
 )

@@ -4,17 +4,18 @@ from __future__ import annotations
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from g2p.plant import JOINT_NAMES, N_JOINTS, N_MOTORS, Recording, TickSample
-from g2p_interfaces.msg import MotorActivation, MotorPower, RigSamples, Treadmill
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
+
+from g2p.plant import JOINT_NAMES, N_JOINTS, N_MOTORS, Recording, TickSample
+from g2p_interfaces.msg import MotorActivation, MotorPower, RigSamples, Treadmill
 
 FRAME_ID = "leg"
 
 
 def time_from_seconds(t_s: float) -> Time:
     """A builtin_interfaces/Time from seconds (rounded to the nanosecond)."""
-    ns = int(round(t_s * 1e9))
+    ns = round(t_s * 1e9)
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
@@ -23,15 +24,26 @@ def seconds_from_time(stamp: Time) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-def tick_messages(sample: TickSample, stamp: Time) -> tuple[JointState, Treadmill, MotorPower, MotorActivation]:
+def tick_messages(
+    sample: TickSample, stamp: Time
+) -> tuple[JointState, Treadmill, MotorPower, MotorActivation]:
     """The four messages the rig publishes for one tick, sharing one header stamp."""
     header = Header(stamp=stamp, frame_id=FRAME_ID)
-    joints = JointState(header=header, name=list(JOINT_NAMES), position=sample.position_rad.tolist(),
-                        velocity=sample.velocity_rad_s.tolist())
-    treadmill = Treadmill(header=header, displacement_mm=float(sample.belt_mm),
-                          velocity_mm_s=float(sample.belt_velocity_mm_s))
-    power = MotorPower(header=header, current_a=sample.current_a.tolist(), power_w=sample.power_w.tolist(),
-                       energy_j=sample.energy_j.tolist())
+    joints = JointState(
+        header=header,
+        name=list(JOINT_NAMES),
+        position=sample.position_rad.tolist(),
+        velocity=sample.velocity_rad_s.tolist(),
+    )
+    treadmill = Treadmill(
+        header=header, displacement_mm=float(sample.belt_mm), velocity_mm_s=float(sample.belt_velocity_mm_s)
+    )
+    power = MotorPower(
+        header=header,
+        current_a=sample.current_a.tolist(),
+        power_w=sample.power_w.tolist(),
+        energy_j=sample.energy_j.tolist(),
+    )
     applied = MotorActivation(header=header, activation=sample.activation.tolist())
     return joints, treadmill, power, applied
 

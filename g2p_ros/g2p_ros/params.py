@@ -50,6 +50,7 @@ def declare_config(node: Node, cls: type[T], prefix: str = "", exclude: tuple[st
 
 def config_as_dict(config: object) -> dict[str, Any]:
     """A configuration dataclass as plain JSON-compatible values, nested dataclasses as dicts."""
+
     def plain(v: Any) -> Any:
         if dataclasses.is_dataclass(v) and not isinstance(v, type):
             return {f.name: plain(getattr(v, f.name)) for f in dataclasses.fields(v)}
@@ -60,6 +61,7 @@ def config_as_dict(config: object) -> dict[str, Any]:
         if isinstance(v, Path):
             return str(v)
         return v
+
     return plain(config)  # type: ignore[no-any-return]
 
 

@@ -13,16 +13,16 @@ import time
 from collections.abc import Callable
 
 import numpy as np
-from g2p.plant import NOMINAL_TICK_HZ, Recording
-from g2p.rig import RigCancelled, RigError
-from g2p.safety import check_activation_sequence
-from g2p_interfaces.action import RunActivations
 from rclpy.action import ActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
+from g2p.plant import NOMINAL_TICK_HZ, Recording
+from g2p.rig import RigCancelled, RigError
+from g2p.safety import check_activation_sequence
+from g2p_interfaces.action import RunActivations
 from g2p_ros import contract
 from g2p_ros.convert import recording_from_msg
 
@@ -59,8 +59,12 @@ class RigClient:
         if not response.success:
             raise RigError(f"rig reset failed: {response.message}")
 
-    def play(self, activations: np.ndarray, progress: Callable[[int, int], None] | None = None,
-             cancel: threading.Event | None = None) -> Recording:
+    def play(
+        self,
+        activations: np.ndarray,
+        progress: Callable[[int, int], None] | None = None,
+        cancel: threading.Event | None = None,
+    ) -> Recording:
         """Play an activation sequence (N, 3) at the rig's tick rate and return the recorded ticks.
 
         Args:

@@ -10,25 +10,26 @@ from __future__ import annotations
 import enum
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from g2p.plant import Plant, Recording, TickSample
-from g2p.safety import ActivationGate, InvalidActivation, check_activation_sequence
-from g2p_interfaces.action import RunActivations
-from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
-from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
+from g2p.plant import Plant, Recording, TickSample
+from g2p.safety import ActivationGate, InvalidActivation, check_activation_sequence
+from g2p_interfaces.action import RunActivations
+from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
 from g2p_ros import contract
 from g2p_ros.convert import rig_samples_msg, tick_messages, time_from_seconds
 
@@ -54,6 +55,8 @@ class RigServerConfig:
         feedback_period_s: wall time between run_activations feedback messages (s).
         diagnostics_period_ticks: ticks between /diagnostics messages (78 = about 1 s of rig time).
         log_period_s: minimum wall time between two warnings about rejected or ignored commands (s).
+        fast_max_real_time_factor: in fast simulation (on-demand pacing), the most simulated seconds per
+            wall second (0 = unlimited), so that subscribers such as the recorder keep up.
     """
 
     watchdog_ticks: int = 3
@@ -61,6 +64,7 @@ class RigServerConfig:
     feedback_period_s: float = 0.2
     diagnostics_period_ticks: int = 78
     log_period_s: float = 1.0
+    fast_max_real_time_factor: float = 30.0
 
 
 @dataclass
@@ -95,8 +99,16 @@ class RigServer:
         on_fault: called from the loop thread when the plant raises; the loop drops to baseline.
     """
 
-    def __init__(self, node: Node, plant: Plant, pacing: Pacing, config: RigServerConfig = RigServerConfig(),
-                 sim_time: bool = False, publish_clock: bool = False, on_fault: Callable[[Exception], None] | None = None) -> None:
+    def __init__(
+        self,
+        node: Node,
+        plant: Plant,
+        pacing: Pacing,
+        config: RigServerConfig = RigServerConfig(),
+        sim_time: bool = False,
+        publish_clock: bool = False,
+        on_fault: Callable[[Exception], None] | None = None,
+    ) -> None:
         self._node = node
         self._plant = plant
         self._pacing = pacing
@@ -109,7 +121,7 @@ class RigServer:
         self._job: _Job | None = None
         self._goal_reserved = False
         self._reset: _ResetRequest | None = None
-        self._lockstep_ticks = 0
+        self._lockstep: deque[np.ndarray] = deque()  # fast simulation: one tick per accepted command
         self._ignored_commands = 0
         self._ticks = 0
         self._faults = 0
@@ -117,6 +129,7 @@ class RigServer:
         self._thread: threading.Thread | None = None
         self._stamp_offset_s = 0.0
         self._wall_start = 0.0
+        self._burst: tuple[float, float] | None = None  # (wall, plant time) when on-demand ticking resumed
         self._last_log = {"rejected": 0.0, "ignored": 0.0}
 
         qos = contract.SAMPLE_QOS
@@ -124,14 +137,28 @@ class RigServer:
         self._pub_treadmill = node.create_publisher(Treadmill, contract.TREADMILL, qos)
         self._pub_power = node.create_publisher(MotorPower, contract.MOTOR_POWER, qos)
         self._pub_applied = node.create_publisher(MotorActivation, contract.APPLIED_ACTIVATION, qos)
-        self._pub_clock = node.create_publisher(Clock, "/clock", contract.CLOCK_QOS) if publish_clock else None
+        self._pub_clock = (
+            node.create_publisher(Clock, "/clock", contract.CLOCK_QOS) if publish_clock else None
+        )
         self._pub_diag = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
         group = ReentrantCallbackGroup()
-        self._sub_cmd = node.create_subscription(MotorActivation, contract.ACTIVATION_CMD, self._on_command,
-                                                 contract.COMMAND_QOS, callback_group=group)
-        self._action = ActionServer(node, RunActivations, contract.RUN_ACTIVATIONS, execute_callback=self._execute,
-                                    goal_callback=self._on_goal, cancel_callback=self._on_cancel,
-                                    callback_group=group)
+        # Commands in arrival order: their own mutually exclusive group.
+        self._sub_cmd = node.create_subscription(
+            MotorActivation,
+            contract.ACTIVATION_CMD,
+            self._on_command,
+            contract.COMMAND_QOS,
+            callback_group=MutuallyExclusiveCallbackGroup(),
+        )
+        self._action = ActionServer(
+            node,
+            RunActivations,
+            contract.RUN_ACTIVATIONS,
+            execute_callback=self._execute,
+            goal_callback=self._on_goal,
+            cancel_callback=self._on_cancel,
+            callback_group=group,
+        )
         self._srv_reset = node.create_service(Trigger, contract.RESET, self._on_reset, callback_group=group)
 
     # Life cycle ------------------------------------------------------------------------------------
@@ -162,8 +189,14 @@ class RigServer:
         """Stop and destroy the ROS entities this server created."""
         self.stop()
         self._action.destroy()
-        for entity in (self._pub_joints, self._pub_treadmill, self._pub_power, self._pub_applied,
-                       self._pub_clock, self._pub_diag):
+        for entity in (
+            self._pub_joints,
+            self._pub_treadmill,
+            self._pub_power,
+            self._pub_applied,
+            self._pub_clock,
+            self._pub_diag,
+        ):
             if entity is not None:
                 self._node.destroy_publisher(entity)
         self._node.destroy_subscription(self._sub_cmd)
@@ -175,15 +208,22 @@ class RigServer:
         with self._cv:
             if self._job is not None:
                 self._ignored_commands += 1
-                self._warn("ignored", "activation_cmd ignored while a run_activations sequence plays "
-                           f"({self._ignored_commands} so far)")
+                self._warn(
+                    "ignored",
+                    "activation_cmd ignored while a run_activations sequence plays "
+                    f"({self._ignored_commands} so far)",
+                )
                 return
-            if self._gate.command(msg.activation) is None:
-                self._warn("rejected", f"activation_cmd rejected (needs 3 finite values): {list(msg.activation)} "
-                           f"({self._gate.counters.rejected} rejected so far)")
+            applied = self._gate.command(msg.activation)
+            if applied is None:
+                self._warn(
+                    "rejected",
+                    f"activation_cmd rejected (needs 3 finite values): {list(msg.activation)} "
+                    f"({self._gate.counters.rejected} rejected so far)",
+                )
                 return
             if self._pacing is Pacing.ON_DEMAND:
-                self._lockstep_ticks += 1
+                self._lockstep.append(applied)
                 self._cv.notify_all()
 
     def _on_goal(self, goal: RunActivations.Goal) -> GoalResponse:
@@ -218,15 +258,20 @@ class RigServer:
                 self._job = job
                 self._cv.notify_all()
         feedback = RunActivations.Feedback(ticks_total=len(job.activations))
-        while not job.done.wait(self._config.feedback_period_s):
+        while True:  # feedback every period while the loop plays, and once at the end
+            finished = job.done.wait(self._config.feedback_period_s)
             feedback.ticks_done = len(job.samples)
             goal_handle.publish_feedback(feedback)
+            if finished:
+                break
         with self._cv:
             self._goal_reserved = False
         samples = list(job.samples)
         stamp = time_from_seconds(self._stamp(samples[0].t_s)) if samples else time_from_seconds(0.0)
-        result = RunActivations.Result(samples=rig_samples_msg(Recording.from_samples(samples), stamp),
-                                       message=job.error or ("cancelled" if job.cancel else ""))
+        result = RunActivations.Result(
+            samples=rig_samples_msg(Recording.from_samples(samples), stamp),
+            message=job.error or ("cancelled" if job.cancel else ""),
+        )
         if job.cancel and goal_handle.is_cancel_requested:
             goal_handle.canceled()
         elif job.error or job.cancel:
@@ -239,7 +284,10 @@ class RigServer:
         req = _ResetRequest()
         with self._cv:
             if self._goal_reserved or self._reset is not None:
-                response.success, response.message = False, "a run_activations sequence or reset is in progress"
+                response.success, response.message = (
+                    False,
+                    "a run_activations sequence or reset is in progress",
+                )
                 return response
             if not self._running:
                 response.success, response.message = False, "rig is not running"
@@ -258,6 +306,7 @@ class RigServer:
         while True:
             with self._cv:
                 while self._running and self._pacing is Pacing.ON_DEMAND and not self._has_work():
+                    self._burst = None
                     self._cv.wait()
                 if not self._running:
                     return
@@ -277,7 +326,7 @@ class RigServer:
                 self._advance(job, sample)
 
     def _has_work(self) -> bool:
-        return self._job is not None or self._reset is not None or self._lockstep_ticks > 0
+        return self._job is not None or self._reset is not None or bool(self._lockstep)
 
     def _next_activation(self) -> tuple[_Job | None, np.ndarray]:
         """The sequence being played, if any, and the coming tick's activation (lock held)."""
@@ -287,8 +336,8 @@ class RigServer:
         if job is not None:  # cancelled: end the sequence now, baseline from this tick on
             self._finish(job)
             return None, self._gate.stop()
-        if self._lockstep_ticks > 0:
-            self._lockstep_ticks -= 1
+        if self._lockstep:
+            return None, self._lockstep.popleft()
         return None, self._gate.next_activation()
 
     def _advance(self, job: _Job, sample: TickSample) -> None:
@@ -329,8 +378,15 @@ class RigServer:
     def _pace(self, t_s: float) -> None:
         if self._pacing is Pacing.WALL_CLOCK:
             delay = self._wall_start + t_s - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
+        elif self._pacing is Pacing.ON_DEMAND and self._config.fast_max_real_time_factor > 0:
+            if self._burst is None:
+                self._burst = (time.monotonic(), t_s)
+            wall0, t0 = self._burst
+            delay = wall0 + (t_s - t0) / self._config.fast_max_real_time_factor - time.monotonic()
+        else:
+            return
+        if delay > 0:
+            time.sleep(delay)
 
     def _stamp(self, t_s: float) -> float:
         return t_s + self._stamp_offset_s
@@ -350,14 +406,22 @@ class RigServer:
 
     def _publish_diagnostics(self, stamp: Time) -> None:
         c = self._gate.counters
-        values = {"ticks": self._ticks, "commands_accepted": c.accepted, "commands_clamped": c.clamped,
-                  "commands_rejected": c.rejected, "commands_ignored_during_sequence": self._ignored_commands,
-                  "watchdog_trips": c.watchdog_trips, "plant_faults": self._faults}
+        values = {
+            "ticks": self._ticks,
+            "commands_accepted": c.accepted,
+            "commands_clamped": c.clamped,
+            "commands_rejected": c.rejected,
+            "commands_ignored_during_sequence": self._ignored_commands,
+            "watchdog_trips": c.watchdog_trips,
+            "plant_faults": self._faults,
+        }
         status = DiagnosticStatus(
             level=DiagnosticStatus.OK if self._faults == 0 else DiagnosticStatus.WARN,
-            name=f"{self._node.get_fully_qualified_name()}: rig", hardware_id=type(self._plant).__name__,
+            name=f"{self._node.get_fully_qualified_name()}: rig",
+            hardware_id=type(self._plant).__name__,
             message="ok" if self._faults == 0 else f"{self._faults} plant faults",
-            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
+            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
+        )
         self._pub_diag.publish(DiagnosticArray(header=Header(stamp=stamp), status=[status]))
 
     def _warn(self, kind: str, text: str) -> None:
@@ -370,5 +434,10 @@ class RigServer:
     def counters(self) -> dict[str, int]:
         """Command counters since start (accepted, clamped, rejected, ignored, watchdog trips)."""
         c = self._gate.counters
-        return {"accepted": c.accepted, "clamped": c.clamped, "rejected": c.rejected,
-                "ignored": self._ignored_commands, "watchdog_trips": c.watchdog_trips}
+        return {
+            "accepted": c.accepted,
+            "clamped": c.clamped,
+            "rejected": c.rejected,
+            "ignored": self._ignored_commands,
+            "watchdog_trips": c.watchdog_trips,
+        }

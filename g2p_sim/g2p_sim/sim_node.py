@@ -7,13 +7,14 @@ import sys
 from dataclasses import dataclass
 
 import rclpy
-from g2p.config import ConfigError
-from g2p.sim import MujocoLeg, MujocoLegConfig
 from g2p_ros.contract import DEFAULT_NAMESPACE
 from g2p_ros.params import declare_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
+
+from g2p.config import ConfigError
+from g2p.sim import MujocoLeg, MujocoLegConfig
 
 
 class TimeMode(enum.Enum):
@@ -46,18 +47,28 @@ class SimNode(Node):
         leg_config = declare_config(self, MujocoLegConfig, "leg.")
         rig_config = declare_config(self, RigServerConfig, "rig.")
         fast = self.config.time_mode is TimeMode.FAST
-        self.rig = RigServer(self, MujocoLeg(leg_config), Pacing.ON_DEMAND if fast else Pacing.WALL_CLOCK,
-                             rig_config, sim_time=fast, publish_clock=True)
+        self.rig = RigServer(
+            self,
+            MujocoLeg(leg_config),
+            Pacing.ON_DEMAND if fast else Pacing.WALL_CLOCK,
+            rig_config,
+            sim_time=fast,
+            publish_clock=True,
+        )
         self.rig.start()
-        self.get_logger().info(f"MuJoCo leg serving the rig contract in {self.get_namespace()} "
-                               f"({self.config.time_mode.value} time)")
+        self.get_logger().info(
+            f"MuJoCo leg serving the rig contract in {self.get_namespace()} "
+            f"({self.config.time_mode.value} time)"
+        )
 
     def destroy_node(self) -> None:
+        """Stop serving the rig contract, then destroy the node."""
         self.rig.destroy()
         super().destroy_node()
 
 
 def main(args: list[str] | None = None) -> None:
+    """Entry point of `ros2 run g2p_sim sim`."""
     rclpy.init(args=args)
     node = None
     try:

@@ -56,8 +56,9 @@ class AttemptOutcome:
     tracking: TrackingError
 
 
-def plan_attempt(features: ArrayLike, inverse_map: InverseMap,
-                 cycle: LimitCycleConfig) -> tuple[FloatArray, FloatArray]:
+def plan_attempt(
+    features: ArrayLike, inverse_map: InverseMap, cycle: LimitCycleConfig
+) -> tuple[FloatArray, FloatArray]:
     """Target kinematics of an attempt and the activations the inverse map predicts for them.
 
     Args:
@@ -86,14 +87,24 @@ def tracking_error(desired_rad: ArrayLike, actual_rad: ArrayLike) -> TrackingErr
     d = np.asarray(desired_rad, dtype=np.float64)
     a = np.asarray(actual_rad, dtype=np.float64)
     if d.shape != a.shape or d.ndim != 2 or d.shape[0] < 2:
-        raise ValueError(f"desired and actual angles must both have shape (N >= 2, 2), got {d.shape}, {a.shape}")
-    err = (a - d)[len(d) // 2:]
-    return TrackingError(mse_deg2=float(np.sum(np.mean(np.degrees(err) ** 2, axis=0))),
-                         rmse_rad=float(np.sqrt(np.mean(err**2))))
+        raise ValueError(
+            f"desired and actual angles must both have shape (N >= 2, 2), got {d.shape}, {a.shape}"
+        )
+    err = (a - d)[len(d) // 2 :]
+    return TrackingError(
+        mse_deg2=float(np.sum(np.mean(np.degrees(err) ** 2, axis=0))),
+        rmse_rad=float(np.sqrt(np.mean(err**2))),
+    )
 
 
-def run_attempt(rig: Rig, inverse_map: InverseMap, features: ArrayLike, cycle: LimitCycleConfig,
-                progress: ProgressCallback | None = None, cancel: threading.Event | None = None) -> AttemptOutcome:
+def run_attempt(
+    rig: Rig,
+    inverse_map: InverseMap,
+    features: ArrayLike,
+    cycle: LimitCycleConfig,
+    progress: ProgressCallback | None = None,
+    cancel: threading.Event | None = None,
+) -> AttemptOutcome:
     """Reset the rig to rest and play one attempt on it.
 
     Args:
@@ -112,6 +123,12 @@ def run_attempt(rig: Rig, inverse_map: InverseMap, features: ArrayLike, cycle: L
     desired, activations = plan_attempt(f, inverse_map, cycle)
     rig.reset()
     recording = rig.play(activations, progress, cancel)
-    return AttemptOutcome(features=f, desired=desired, activations=activations, recording=recording,
-                          reward_mm=recording.belt_travel_mm, energy_j=recording.energy_used_j,
-                          tracking=tracking_error(desired[:, :2], recording.position_rad))
+    return AttemptOutcome(
+        features=f,
+        desired=desired,
+        activations=activations,
+        recording=recording,
+        reward_mm=recording.belt_travel_mm,
+        energy_j=recording.energy_used_j,
+        tracking=tracking_error(desired[:, :2], recording.position_rad),
+    )

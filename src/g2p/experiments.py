@@ -52,8 +52,10 @@ class TreadmillRun:
 
     def __init__(self, learner: Learner, search: SearchConfig, cycle: LimitCycleConfig, seed: int) -> None:
         if (search.feature_low, search.feature_high) != (cycle.feature_low, cycle.feature_high):
-            raise ValueError("search and cycle feature bounds differ: "
-                             f"{(search.feature_low, search.feature_high)} vs {(cycle.feature_low, cycle.feature_high)}")
+            raise ValueError(
+                "search and cycle feature bounds differ: "
+                f"{(search.feature_low, search.feature_high)} vs {(cycle.feature_low, cycle.feature_high)}"
+            )
         self.learner = learner
         self.search = RewardSearch(search)
         self.cycle = cycle
@@ -65,8 +67,9 @@ class TreadmillRun:
         """Whether the search is done or failed."""
         return self.search.finished
 
-    def next_attempt(self, rig: Rig, progress: ProgressCallback | None = None,
-                     cancel: threading.Event | None = None) -> AttemptReport:
+    def next_attempt(
+        self, rig: Rig, progress: ProgressCallback | None = None, cancel: threading.Event | None = None
+    ) -> AttemptReport:
         """Propose features, run them, tell the search, refine the map.
 
         A cancelled attempt (RigCancelled) leaves the search and the map as they were.
@@ -74,8 +77,9 @@ class TreadmillRun:
         features = self.search.propose(self._rng)
         outcome, fit = self.learner.attempt(rig, features, self.cycle, True, progress, cancel)
         told = self.search.tell(features, outcome.reward_mm)
-        report = AttemptReport(len(self.reports) + 1, told.phase, outcome, told.sigma,
-                               self.search.best_reward_mm, fit)
+        report = AttemptReport(
+            len(self.reports) + 1, told.phase, outcome, told.sigma, self.search.best_reward_mm, fit
+        )
         self.reports.append(report)
         return report
 
@@ -108,11 +112,14 @@ def treadmill_result(run: TreadmillRun, babbling_fit: FitReport) -> TreadmillRes
     s = run.search
     best = s.best_features if s.best_features is not None else np.full(s.config.n_features, np.nan)
     crossed = s.phase in (Phase.EXPLOITATION, Phase.DONE)
-    return TreadmillResult(tuple(run.reports), crossed, s.n_exploration, s.n_exploitation, best,
-                           s.best_reward_mm, babbling_fit)
+    return TreadmillResult(
+        tuple(run.reports), crossed, s.n_exploration, s.n_exploitation, best, s.best_reward_mm, babbling_fit
+    )
 
 
-def run_treadmill(learner: Learner, rig: Rig, search: SearchConfig, cycle: LimitCycleConfig) -> TreadmillResult:
+def run_treadmill(
+    learner: Learner, rig: Rig, search: SearchConfig, cycle: LimitCycleConfig
+) -> TreadmillResult:
     """The treadmill task in-process: babble, fit, then attempts until the search ends (paper Fig 4)."""
     fit = learner.babble(rig)
     run = TreadmillRun(learner, search, cycle, learner.config.seed)
@@ -121,8 +128,9 @@ def run_treadmill(learner: Learner, rig: Rig, search: SearchConfig, cycle: Limit
     return treadmill_result(run, fit)
 
 
-def refine_one_trajectory(learner: Learner, rig: Rig, features: np.ndarray, cycle: LimitCycleConfig,
-                          refinements: int = 5) -> list[AttemptOutcome]:
+def refine_one_trajectory(
+    learner: Learner, rig: Rig, features: np.ndarray, cycle: LimitCycleConfig, refinements: int = 5
+) -> list[AttemptOutcome]:
     """Free movement in the air (paper Fig 5a): one trajectory, attempted and refined `refinements` times.
 
     Returns:
@@ -157,23 +165,28 @@ class GeneralizationResult:
     @property
     def share_improved(self) -> float:
         """Share of test trajectories tracked better by the refined map: the paper's 96.7%."""
-        return float(np.mean([r.mse_deg2 < b.mse_deg2 for b, r in zip(self.babbling_map, self.refined_map,
-                                                                     strict=True)]))
+        return float(
+            np.mean(
+                [r.mse_deg2 < b.mse_deg2 for b, r in zip(self.babbling_map, self.refined_map, strict=True)]
+            )
+        )
 
 
 def random_features(rng: np.random.Generator, cycle: LimitCycleConfig, n: int) -> np.ndarray:
-    """n feature vectors uniform in the cycle's bounds, shape (n, n_spokes)."""
+    """N feature vectors uniform in the cycle's bounds, shape (n, n_spokes)."""
     return rng.uniform(cycle.feature_low, cycle.feature_high, size=(n, cycle.n_spokes))
 
 
-def evaluate_fixed_map(inverse_map: InverseMap, rig: Rig, trajectories: np.ndarray,
-                   cycle: LimitCycleConfig) -> tuple[TrackingError, ...]:
+def evaluate_fixed_map(
+    inverse_map: InverseMap, rig: Rig, trajectories: np.ndarray, cycle: LimitCycleConfig
+) -> tuple[TrackingError, ...]:
     """Tracking error of a fixed map on each trajectory (no refinement)."""
     return tuple(run_attempt(rig, inverse_map, f, cycle).tracking for f in trajectories)
 
 
-def generalization(learner: Learner, rig: Rig, cycle: LimitCycleConfig, train: np.ndarray,
-                   test: np.ndarray) -> GeneralizationResult:
+def generalization(
+    learner: Learner, rig: Rig, cycle: LimitCycleConfig, train: np.ndarray, test: np.ndarray
+) -> GeneralizationResult:
     """Refine on `train` trajectories, then test the babbling-only and the refined map on `test`.
 
     Args:
@@ -186,8 +199,10 @@ def generalization(learner: Learner, rig: Rig, cycle: LimitCycleConfig, train: n
     babbling_map = learner.frozen_map()
     for f in train:
         learner.attempt(rig, f, cycle, refine=True)
-    return GeneralizationResult(evaluate_fixed_map(babbling_map, rig, test, cycle),
-                                evaluate_fixed_map(learner.inverse_map, rig, test, cycle))
+    return GeneralizationResult(
+        evaluate_fixed_map(babbling_map, rig, test, cycle),
+        evaluate_fixed_map(learner.inverse_map, rig, test, cycle),
+    )
 
 
 __all__ = [
@@ -195,10 +210,10 @@ __all__ = [
     "GeneralizationResult",
     "TreadmillResult",
     "TreadmillRun",
+    "evaluate_fixed_map",
     "generalization",
     "random_features",
     "refine_one_trajectory",
     "run_treadmill",
-    "evaluate_fixed_map",
     "treadmill_result",
 ]

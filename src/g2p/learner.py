@@ -56,8 +56,10 @@ class Dataset:
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """All kinematics (K, 6) and activations (K, 3) so far."""
-        return (np.concatenate([p.kinematics for _, p in self.segments]),
-                np.concatenate([p.activation for _, p in self.segments]))
+        return (
+            np.concatenate([p.kinematics for _, p in self.segments]),
+            np.concatenate([p.activation for _, p in self.segments]),
+        )
 
     def __len__(self) -> int:
         return sum(len(p) for _, p in self.segments)
@@ -80,8 +82,13 @@ class Learner:
         self.refinements = 0
         self.babbling_recording: Recording | None = None
 
-    def babble(self, rig: Rig, duration_s: float | None = None, progress: ProgressCallback | None = None,
-               cancel: threading.Event | None = None) -> FitReport:
+    def babble(
+        self,
+        rig: Rig,
+        duration_s: float | None = None,
+        progress: ProgressCallback | None = None,
+        cancel: threading.Event | None = None,
+    ) -> FitReport:
         """Babble on the rig from rest, then fit the map on the babbling data (from fresh weights).
 
         Args:
@@ -97,10 +104,12 @@ class Learner:
         rig.reset()
         recordings = []
         for start in range(0, n, chunk):
+
             def chunk_progress(done: int, _total: int, start: int = start) -> None:
                 if progress is not None:
                     progress(start + done, n)
-            recordings.append(rig.play(activations[start:start + chunk], chunk_progress, cancel))
+
+            recordings.append(rig.play(activations[start : start + chunk], chunk_progress, cancel))
         if progress is not None:
             progress(n, n)
         return self.fit_babbling(recordings)
@@ -114,16 +123,24 @@ class Learner:
         self.refinements = 0
         return self.inverse_map.fit(*self.dataset.arrays(), self._map_rng)
 
-    def attempt(self, rig: Rig, features: np.ndarray, cycle: LimitCycleConfig, refine: bool = True,
-                progress: ProgressCallback | None = None,
-                cancel: threading.Event | None = None) -> tuple[AttemptOutcome, FitReport | None]:
+    def attempt(
+        self,
+        rig: Rig,
+        features: np.ndarray,
+        cycle: LimitCycleConfig,
+        refine: bool = True,
+        progress: ProgressCallback | None = None,
+        cancel: threading.Event | None = None,
+    ) -> tuple[AttemptOutcome, FitReport | None]:
         """Run one attempt and, unless told not to, refine the map with its data.
 
         Returns:
             The attempt's outcome, and the refinement's report (None when not refined).
         """
         outcome = run_attempt(rig, self.inverse_map, features, cycle, progress, cancel)
-        return outcome, (self.refine_with(outcome.recording, f"attempt {self.refinements + 1}") if refine else None)
+        return outcome, (
+            self.refine_with(outcome.recording, f"attempt {self.refinements + 1}") if refine else None
+        )
 
     def refine_with(self, recording: Recording, label: str) -> FitReport:
         """Add an attempt's data (without its transition from rest) and refine the map on all data."""

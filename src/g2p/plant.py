@@ -32,8 +32,14 @@ MOTOR_NAMES = ("M0", "M1", "M2")
 NOMINAL_TICK_HZ = 78.0
 
 # Columns of the per-tick vector fields of TickSample and Recording; scalar fields have none.
-_WIDTHS = {"activation": N_MOTORS, "position_rad": N_JOINTS, "velocity_rad_s": N_JOINTS,
-           "current_a": N_MOTORS, "power_w": N_MOTORS, "energy_j": N_MOTORS}
+_WIDTHS = {
+    "activation": N_MOTORS,
+    "position_rad": N_JOINTS,
+    "velocity_rad_s": N_JOINTS,
+    "current_a": N_MOTORS,
+    "power_w": N_MOTORS,
+    "energy_j": N_MOTORS,
+}
 
 
 @dataclass(frozen=True)
@@ -103,8 +109,14 @@ class Recording:
     @classmethod
     def from_samples(cls, samples: Sequence[TickSample]) -> Recording:
         """Stack tick samples into arrays."""
-        return cls(**{f.name: np.array([getattr(s, f.name) for s in samples], dtype=np.float64).reshape(
-            len(samples), *([_WIDTHS[f.name]] if f.name in _WIDTHS else [])) for f in fields(TickSample)})
+        return cls(
+            **{
+                f.name: np.array([getattr(s, f.name) for s in samples], dtype=np.float64).reshape(
+                    len(samples), *([_WIDTHS[f.name]] if f.name in _WIDTHS else [])
+                )
+                for f in fields(TickSample)
+            }
+        )
 
     @classmethod
     def empty(cls) -> Recording:
@@ -130,8 +142,9 @@ def concatenate(recordings: Sequence[Recording]) -> Recording:
     """Join recordings end to end (stamps are kept as they are)."""
     if not recordings:
         return Recording.empty()
-    return Recording(**{f.name: np.concatenate([getattr(r, f.name) for r in recordings])
-                        for f in fields(Recording)})
+    return Recording(
+        **{f.name: np.concatenate([getattr(r, f.name) for r in recordings]) for f in fields(Recording)}
+    )
 
 
 @runtime_checkable

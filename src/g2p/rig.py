@@ -34,8 +34,12 @@ class Rig(Protocol):
         """Return to the resting posture every attempt starts from."""
         ...
 
-    def play(self, activations: NDArray[np.float64], progress: ProgressCallback | None = None,
-             cancel: threading.Event | None = None) -> Recording:
+    def play(
+        self,
+        activations: NDArray[np.float64],
+        progress: ProgressCallback | None = None,
+        cancel: threading.Event | None = None,
+    ) -> Recording:
         """Play activations (N, 3) one row per tick and return the N recorded ticks.
 
         Raises:
@@ -61,8 +65,12 @@ class PlantRig:
         """Reset the plant to rest."""
         self.plant.reset()
 
-    def play(self, activations: NDArray[np.float64], progress: ProgressCallback | None = None,
-             cancel: threading.Event | None = None) -> Recording:
+    def play(
+        self,
+        activations: NDArray[np.float64],
+        progress: ProgressCallback | None = None,
+        cancel: threading.Event | None = None,
+    ) -> Recording:
         """Play the sequence on the plant, tick by tick."""
         seq = check_activation_sequence(activations)
         samples = []

@@ -48,13 +48,17 @@ def check_activation_sequence(activations: ArrayLike) -> FloatArray:
         raise InvalidActivation(f"activation sequence must have shape (N >= 1, {N_MOTORS}), got {a.shape}")
     bad = ~np.isfinite(a)
     if bad.any():
-        raise InvalidActivation(f"activation sequence has {int(bad.sum())} non-finite values, first at row "
-                                f"{int(np.argwhere(bad)[0, 0])}")
+        raise InvalidActivation(
+            f"activation sequence has {int(bad.sum())} non-finite values, first at row "
+            f"{int(np.argwhere(bad)[0, 0])}"
+        )
     out = (a < 0.0) | (a > 1.0)
     if out.any():
         row = int(np.argwhere(out)[0, 0])
-        raise InvalidActivation(f"activation sequence has {int(out.sum())} values outside [0, 1], first at "
-                                f"row {row}: {a[row].tolist()}")
+        raise InvalidActivation(
+            f"activation sequence has {int(out.sum())} values outside [0, 1], first at "
+            f"row {row}: {a[row].tolist()}"
+        )
     return a
 
 

@@ -1,0 +1,195 @@
+"""`ros2 run g2p_ros bringup`: start the graph described in config/graph.yaml, one process per node.
+
+The rig starts first, then each node once the previous one is on the graph; the recorder must have
+subscribed to the rig's topics before the learner starts, so nothing goes unrecorded. When the main node
+(the learner) exits, or on Ctrl-C / SIGTERM, the processes are stopped in an order that loses nothing:
+learner first (it cancels its goal, the rig drops to baseline), then the rig, then the recorder, which
+finalizes the bag. Then the run's report is written beside the bag.
+
+    ros2 run g2p_ros bringup [--rig sim|sim_realtime|sim_air] [--set learner.search.threshold_mm=64.0] ...
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+import rclpy
+import yaml
+from ament_index_python.packages import PackageNotFoundError, get_package_prefix, get_package_share_directory
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from rclpy.utilities import remove_ros_args
+
+from g2p.bags.runs import new_run_id
+from g2p_ros.graph import Graph, GraphError, NodeSpec, load_graph
+
+STOP_TIMEOUT_S = 20.0
+START_TIMEOUT_S = 60.0
+
+
+def _parse(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="bringup", description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--graph",
+        type=Path,
+        default=None,
+        help="graph description (default: the installed g2p_ros config/graph.yaml)",
+    )
+    parser.add_argument(
+        "--rig", default=None, help="which rig of the description to start (default: the first)"
+    )
+    parser.add_argument("--bags-dir", default="bags", help="directory of recorded runs (default: bags)")
+    parser.add_argument("--run-id", default="", help="id of the run (default: UTC time and a random suffix)")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NODE.PARAM=VALUE",
+        help="override a node's parameter; VALUE is YAML (write floats as 1.0)",
+    )
+    parser.add_argument("--no-report", action="store_true", help="do not write the run's report")
+    return parser.parse_args(remove_ros_args(argv)[1:])
+
+
+def _overrides(settings: list[str]) -> dict[str, dict[str, Any]]:
+    out: dict[str, dict[str, Any]] = {}
+    for item in settings:
+        key, sep, value = item.partition("=")
+        node, dot, param = key.partition(".")
+        if not sep or not dot or not param:
+            raise GraphError(f"--set {item!r}: expected NODE.PARAM=VALUE")
+        out.setdefault(node, {})[param] = yaml.safe_load(value)
+    return out
+
+
+class Process:
+    """One node of the graph running as a child process in its own session (Ctrl-C reaches only us)."""
+
+    def __init__(self, spec: NodeSpec, params_dir: Path, log_dir: Path) -> None:
+        self.spec = spec
+        params_file = params_dir / f"{spec.name}.yaml"
+        params_file.write_text(spec.parameters_yaml())
+        executable = Path(get_package_prefix(spec.package)) / "lib" / spec.package / spec.executable
+        command = [str(executable), *spec.arguments, *spec.ros_arguments(params_file)]
+        self.log_path = log_dir / f"{spec.name}.log"
+        self._log: IO[bytes] | None = None
+        if spec.main:
+            out = None  # the main node talks to the user
+        else:
+            self._log = open(self.log_path, "wb")
+            out = self._log
+        self.popen = subprocess.Popen(
+            command, stdout=out, stderr=subprocess.STDOUT if out else None, start_new_session=True
+        )
+
+    def running(self) -> bool:
+        """Whether the process is still running."""
+        return self.popen.poll() is None
+
+    def stop(self, timeout_s: float = STOP_TIMEOUT_S) -> int:
+        """SIGINT, then SIGTERM, then SIGKILL, each after `timeout_s`; returns the exit code."""
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            if not self.running():
+                break
+            self.popen.send_signal(sig)
+            try:
+                self.popen.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                print(f"bringup: {self.spec.name} did not stop on {sig.name}", file=sys.stderr)
+        if self._log is not None:
+            self._log.close()
+        return self.popen.wait()
+
+
+def _wait_ready(probe: Node, proc: Process, rig_topic: str, stop: threading.Event) -> bool:
+    """Wait until the node is on the graph (and, for a recorder, subscribed to the rig's topic)."""
+    deadline = time.monotonic() + START_TIMEOUT_S
+    name, ns = proc.spec.name, proc.spec.namespace
+    while time.monotonic() < deadline and not stop.is_set():
+        if not proc.running():
+            return False
+        if (name, ns) in probe.get_node_names_and_namespaces():
+            if proc.spec.executable != "record":
+                return True
+            subs = probe.get_subscriptions_info_by_topic(rig_topic)
+            if any(s.node_name == name for s in subs):
+                return True
+        time.sleep(0.1)
+    return False
+
+
+def run(graph: Graph, log_dir: Path, stop: threading.Event) -> int:
+    """Start the graph, wait for the main node to exit (or for `stop`), stop everything; main's exit code."""
+    probe = Node("bringup", namespace=graph.namespace)
+    procs: list[Process] = []
+    rig_topic = f"{graph.namespace.rstrip('/')}/joint_states"
+    code = 1
+    with tempfile.TemporaryDirectory(prefix="g2p-bringup-") as params_dir:
+        try:
+            for spec in graph.nodes:
+                proc = Process(spec, Path(params_dir), log_dir)
+                procs.append(proc)
+                if spec is graph.main:
+                    break
+                if not _wait_ready(probe, proc, rig_topic, stop):
+                    print(f"bringup: {spec.name} did not come up; see {proc.log_path}", file=sys.stderr)
+                    return 1
+            main = procs[-1]
+            while main.running() and not stop.is_set():
+                time.sleep(0.1)
+            code = main.stop()  # on stop: SIGINT lets the learner cancel its goal (rig to baseline)
+        finally:
+            # Rig before recorder, so the recorder sees everything the rig published.
+            for proc in procs:
+                proc.stop()
+            probe.destroy_node()
+    return code
+
+
+def main(args: list[str] | None = None) -> None:
+    """Entry point of `ros2 run g2p_ros bringup`."""
+    argv = sys.argv if args is None else args
+    options = _parse(argv)
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    code = 1
+    try:
+        run_id = options.run_id or new_run_id(datetime.now(timezone.utc), np.random.default_rng())
+        graph_path = options.graph or Path(get_package_share_directory("g2p_ros")) / "config" / "graph.yaml"
+        graph = load_graph(
+            graph_path, options.rig, {"run_id": run_id, "bags_dir": options.bags_dir}, _overrides(options.set)
+        )
+        log_dir = Path("log") / "runs" / run_id
+        log_dir.mkdir(parents=True, exist_ok=True)
+        print(
+            f"bringup: run {run_id}: {', '.join(n.name for n in graph.nodes)} in {graph.namespace} "
+            f"(logs in {log_dir})",
+            flush=True,
+        )
+        code = run(graph, log_dir, stop)
+        bag = Path(options.bags_dir) / run_id
+        if not options.no_report and (bag / "metadata.yaml").exists():
+            report = Path(get_package_prefix("g2p_ros")) / "lib" / "g2p_ros" / "report"
+            subprocess.run([str(report), str(bag)], check=False)
+    except (GraphError, PackageNotFoundError) as err:
+        print(f"bringup: {err}", file=sys.stderr)
+        code = 2
+    finally:
+        rclpy.try_shutdown()
+    sys.exit(code if not stop.is_set() else 130)
+
+
+if __name__ == "__main__":
+    main()

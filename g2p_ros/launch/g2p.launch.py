@@ -1,0 +1,66 @@
+"""Launch the G2P graph on a full ROS 2 install, from the same description as `ros2 run g2p_ros bringup`.
+
+    ros2 launch g2p_ros g2p.launch.py rig:=sim run_id:=my-run bags_dir:=bags
+
+Every node of config/graph.yaml starts with its parameters and remappings. Unlike `bringup`, launch
+starts them all at once and does not write the report; run `ros2 run g2p_ros report bags/<run_id>` after.
+"""
+
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+from ament_index_python.packages import get_package_share_directory
+from g2p_ros.graph import load_graph
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, OpaqueFunction, Shutdown
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+from g2p.bags.runs import new_run_id
+
+
+def _nodes(context, *args, **kwargs):
+    graph_file = LaunchConfiguration("graph").perform(context)
+    run_id = LaunchConfiguration("run_id").perform(context) or new_run_id(
+        datetime.now(timezone.utc), np.random.default_rng()
+    )
+    graph = load_graph(
+        Path(graph_file),
+        LaunchConfiguration("rig").perform(context) or None,
+        {"run_id": run_id, "bags_dir": LaunchConfiguration("bags_dir").perform(context)},
+    )
+    return [
+        Node(
+            package=spec.package,
+            executable=spec.executable,
+            name=spec.name,
+            namespace=spec.namespace,
+            parameters=[spec.parameters],
+            remappings=list(spec.remappings.items()),
+            arguments=list(spec.arguments),
+            output="screen",
+            on_exit=Shutdown() if spec is graph.main else None,
+        )
+        for spec in graph.nodes
+    ]
+
+
+def generate_launch_description():
+    """The graph of config/graph.yaml as launch actions."""
+    default_graph = str(Path(get_package_share_directory("g2p_ros")) / "config" / "graph.yaml")
+    return LaunchDescription(
+        [
+            DeclareLaunchArgument(
+                "graph", default_value=default_graph, description="graph description (YAML)"
+            ),
+            DeclareLaunchArgument(
+                "rig", default_value="", description="rig entry of the description (default: first)"
+            ),
+            DeclareLaunchArgument(
+                "run_id", default_value="", description="run id (default: UTC time + suffix)"
+            ),
+            DeclareLaunchArgument("bags_dir", default_value="bags", description="directory of recorded runs"),
+            OpaqueFunction(function=_nodes),
+        ]
+    )

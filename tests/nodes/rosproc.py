@@ -1,0 +1,114 @@
+"""Helpers for tests that run the installed executables as a user does, and talk to them over ROS 2.
+
+`NodeProcess` starts `install/<pkg>/lib/<pkg>/<exe>` (the file `ros2 run <pkg> <exe>` executes) and
+stops it with SIGINT; `RosPeer` is an rclpy node in its own Context, spun in a background thread, for
+the test's side of the conversation.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.task import Future
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def executable(package: str, name: str) -> Path:
+    """The installed executable `ros2 run <package> <name>` would run."""
+    path = ROOT / "install" / package / "lib" / package / name
+    assert path.is_file(), f"{path} is not installed (run scripts/bootstrap)"
+    return path
+
+
+class NodeProcess:
+    """An installed executable running as a child process, its output captured to a log file.
+
+    Args:
+        package: ROS package.
+        name: executable name.
+        args: command-line arguments (e.g. ["--ros-args", "-p", "time_mode:=fast"]).
+        log_dir: where to write `<name>.log`.
+    """
+
+    def __init__(self, package: str, name: str, args: list[str], log_dir: Path) -> None:
+        self.log_path = log_dir / f"{package}-{name}-{time.monotonic_ns()}.log"
+        self._log = open(self.log_path, "wb")
+        self.popen = subprocess.Popen(
+            [str(executable(package, name)), *args],
+            stdout=self._log,
+            stderr=subprocess.STDOUT,
+            env=os.environ.copy(),
+        )
+
+    def log(self) -> str:
+        """What the process printed so far."""
+        self._log.flush()
+        return self.log_path.read_text(errors="replace")
+
+    def stop(self, sig: int = signal.SIGINT, timeout_s: float = 20.0) -> int:
+        """Signal the process and wait for it; kill it after `timeout_s`. Returns the exit code."""
+        if self.popen.poll() is None:
+            self.popen.send_signal(sig)
+            try:
+                self.popen.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                self.popen.kill()
+                self.popen.wait()
+        self._log.close()
+        return self.popen.returncode
+
+
+class RosPeer:
+    """A test-side rclpy node in its own Context, spun in a background thread.
+
+    Args:
+        name: node name.
+        namespace: node namespace (the rig contract's default is /leg).
+    """
+
+    def __init__(self, name: str = "test_peer", namespace: str = "/leg") -> None:
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = Node(name, namespace=namespace, context=self.context)
+        self.executor = MultiThreadedExecutor(num_threads=3, context=self.context)
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self._thread.start()
+
+    def wait(self, future: Future, timeout_s: float) -> Any:
+        """The future's result; fails the test after `timeout_s` (s)."""
+        done = threading.Event()
+        future.add_done_callback(lambda _: done.set())
+        assert done.wait(timeout_s), f"no result within {timeout_s} s"
+        return future.result()
+
+    def close(self) -> None:
+        """Shut the node and its context down: stop spinning first, then destroy what the node holds."""
+        self.executor.shutdown()
+        self._thread.join(5.0)
+        self.destroy_entities()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+    def destroy_entities(self) -> None:
+        """Destroy entities the node does not destroy itself (action clients); called by `close`."""
+
+
+def wait_until(condition: Callable[[], bool], timeout_s: float, what: str) -> None:
+    """Poll `condition` every 10 ms until it holds; fail the test with `what` after `timeout_s`."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, f"timed out after {timeout_s} s waiting for {what}"
+        time.sleep(0.01)

@@ -1,0 +1,283 @@
+"""The installed `sim` executable serving the rig contract over real Fast DDS, driven by a test peer."""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from action_msgs.msg import GoalStatus
+from diagnostic_msgs.msg import DiagnosticArray
+from g2p_ros.convert import recording_from_msg
+from rclpy.action import ActionClient
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+
+from g2p.plant import NOMINAL_TICK_HZ
+from g2p_interfaces.action import RunActivations
+from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
+from g2p_ros import contract
+from tests.nodes.rosproc import NodeProcess, RosPeer, wait_until
+
+BASELINE = 0.15
+# Like the recorder: a reader history deep enough to absorb this process's pauses in fast simulation.
+DEEP_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
+
+
+class RigPeer(RosPeer):
+    """The test's side of the rig contract: every rig topic collected, the action and reset clients."""
+
+    def __init__(self) -> None:
+        super().__init__("rig_peer")
+        self.lock = threading.Lock()
+        self.received: dict[str, list[object]] = {
+            name: []
+            for name in (
+                contract.JOINT_STATES,
+                contract.TREADMILL,
+                contract.MOTOR_POWER,
+                contract.APPLIED_ACTIVATION,
+            )
+        }
+        self.diagnostics: list[DiagnosticArray] = []
+        for name, msg_type in (
+            (contract.JOINT_STATES, JointState),
+            (contract.TREADMILL, Treadmill),
+            (contract.MOTOR_POWER, MotorPower),
+            (contract.APPLIED_ACTIVATION, MotorActivation),
+        ):
+            self.node.create_subscription(msg_type, name, self._collector(name), DEEP_QOS)
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append, 10)
+        self.cmd = self.node.create_publisher(MotorActivation, contract.ACTIVATION_CMD, contract.COMMAND_QOS)
+        self.action = ActionClient(self.node, RunActivations, contract.RUN_ACTIVATIONS)
+        self.reset = self.node.create_client(Trigger, contract.RESET)
+
+    def destroy_entities(self) -> None:
+        self.action.destroy()
+
+    def _collector(self, name: str):
+        def collect(msg: object) -> None:
+            with self.lock:
+                self.received[name].append(msg)
+
+        return collect
+
+    def applied(self) -> list[list[float]]:
+        with self.lock:
+            return [list(m.activation) for m in self.received[contract.APPLIED_ACTIVATION]]
+
+    def wait_for_rig(self) -> None:
+        assert self.action.wait_for_server(timeout_sec=30.0), "the rig's run_activations never appeared"
+        assert self.reset.wait_for_service(timeout_sec=30.0)
+        wait_until(
+            lambda: self.cmd.get_subscription_count() > 0, 30.0, "the rig to subscribe to activation_cmd"
+        )
+
+    def play(self, activations: np.ndarray, feedback: list[object] | None = None):
+        goal = RunActivations.Goal(activation=np.asarray(activations, dtype=np.float64).ravel())
+        handle = self.wait(
+            self.action.send_goal_async(
+                goal, feedback_callback=(feedback.append if feedback is not None else None)
+            ),
+            30.0,
+        )
+        return handle
+
+
+@pytest.fixture
+def log_dir(tmp_path: Path) -> Path:
+    return tmp_path
+
+
+def start_sim(log_dir: Path, *params: str) -> NodeProcess:
+    args = ["--ros-args"]
+    for p in params:
+        args += ["-p", p]
+    return NodeProcess("g2p_sim", "sim", args, log_dir)
+
+
+@pytest.fixture
+def fast_sim(log_dir: Path) -> Iterator[NodeProcess]:
+    proc = start_sim(log_dir, "time_mode:=fast", "leg.seed:=3")
+    yield proc
+    assert proc.stop() == 0, proc.log()
+
+
+@pytest.fixture
+def peer() -> Iterator[RigPeer]:
+    p = RigPeer()
+    yield p
+    p.close()
+
+
+def test_run_activations_gives_feedback_and_the_samples_the_topics_carried(
+    fast_sim: NodeProcess, peer: RigPeer
+) -> None:
+    peer.wait_for_rig()
+    n = 400
+    activations = np.tile([0.2, 0.8, 0.3], (n, 1))
+    feedback: list[object] = []
+    handle = peer.play(activations, feedback)
+    assert handle.accepted
+    response = peer.wait(handle.get_result_async(), 60.0)
+    assert response.status == GoalStatus.STATUS_SUCCEEDED
+    rec = recording_from_msg(response.result.samples)
+    assert len(rec) == n
+    np.testing.assert_array_equal(rec.activation, activations)
+    assert np.all(np.diff(rec.t_s) > 0)
+    # M1 alone above baseline flexes the hip (Fig 1d).
+    assert rec.position_rad[-1, 0] > rec.position_rad[0, 0] + math.radians(5)
+    assert feedback, "no feedback arrived"
+    assert all(f.feedback.ticks_total == n for f in feedback)
+    # The topics carried the same ticks, the four messages of a tick sharing one stamp.
+    wait_until(lambda: len(peer.applied()) >= n, 10.0, "the sequence's ticks on the topics")
+    with peer.lock:
+        stamps = {
+            name: {(m.header.stamp.sec, m.header.stamp.nanosec) for m in msgs}
+            for name, msgs in peer.received.items()
+        }
+        joints = {
+            (m.header.stamp.sec, m.header.stamp.nanosec): m for m in peer.received[contract.JOINT_STATES]
+        }
+    assert (
+        stamps[contract.JOINT_STATES]
+        == stamps[contract.TREADMILL]
+        == stamps[contract.MOTOR_POWER]
+        == stamps[contract.APPLIED_ACTIVATION]
+    )
+    first = response.result.samples.start_stamp
+    js = joints[(first.sec, first.nanosec)]
+    assert list(js.name) == ["proximal", "distal"]
+    np.testing.assert_array_equal(js.position, rec.position_rad[0])
+
+
+def test_fast_mode_is_deterministic_for_a_seed(log_dir: Path) -> None:
+    rng = np.random.default_rng(7)
+    activations = np.repeat(rng.uniform(0.15, 1.0, (20, 3)), 30, axis=0)
+    results = []
+    for _ in range(2):
+        proc = start_sim(log_dir, "time_mode:=fast", "leg.seed:=11")
+        peer = RigPeer()
+        try:
+            peer.wait_for_rig()
+            handle = peer.play(activations)
+            results.append(peer.wait(handle.get_result_async(), 60.0).result.samples)
+        finally:
+            peer.close()
+            assert proc.stop() == 0, proc.log()
+    a, b = (recording_from_msg(r) for r in results)
+    for name in ("t_s", "activation", "position_rad", "velocity_rad_s", "belt_mm", "current_a", "power_w"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
+def test_invalid_goals_are_rejected_and_a_second_goal_while_one_runs(
+    fast_sim: NodeProcess, peer: RigPeer
+) -> None:
+    peer.wait_for_rig()
+    for bad in ([0.5, math.nan, 0.5], [0.5, 0.5], [0.5, 1.5, 0.5], []):
+        handle = peer.wait(peer.action.send_goal_async(RunActivations.Goal(activation=bad)), 30.0)
+        assert not handle.accepted, bad
+    long = peer.play(np.full((20000, 3), 0.3))
+    assert long.accepted
+    second = peer.play(np.full((10, 3), 0.3))
+    assert not second.accepted
+    peer.wait(long.cancel_goal_async(), 10.0)
+    assert peer.wait(long.get_result_async(), 30.0).status == GoalStatus.STATUS_CANCELED
+    assert all(
+        min(a) >= BASELINE and max(a) <= 1.0 and all(math.isfinite(x) for x in a) for a in peer.applied()
+    )
+
+
+def test_cancel_drops_to_baseline_within_one_tick(fast_sim: NodeProcess, peer: RigPeer) -> None:
+    peer.wait_for_rig()
+    handle = peer.play(np.full((50000, 3), 0.9))
+    wait_until(lambda: len(peer.applied()) > 100, 30.0, "the sequence to play")
+    peer.wait(handle.cancel_goal_async(), 10.0)
+    response = peer.wait(handle.get_result_async(), 30.0)
+    played = len(response.result.samples.time_s)
+    assert response.status == GoalStatus.STATUS_CANCELED and played < 50000
+    wait_until(lambda: len(peer.applied()) > played, 10.0, "the tick after the cancel")
+    applied = peer.applied()
+    assert applied[played] == [BASELINE] * 3  # the first tick after the last played one
+
+
+def test_bad_commands_never_reach_the_physics_and_are_counted(fast_sim: NodeProcess, peer: RigPeer) -> None:
+    peer.wait_for_rig()
+    header = MotorActivation().header
+    # Fast mode runs one tick per valid command (lockstep), so each valid command yields one applied tick.
+    for cmd in (
+        [0.3, 0.4, 0.5],
+        [math.nan, 0.5, 0.5],
+        [0.5, 0.5],
+        [math.inf, 0.2, 0.2],
+        [2.0, -1.0, 0.5],
+        [0.0, 0.1, 0.2],
+    ):
+        peer.cmd.publish(MotorActivation(header=header, activation=cmd))
+    wait_until(lambda: len(peer.applied()) >= 3, 10.0, "three applied ticks")
+    time.sleep(0.5)  # any further (wrong) tick would arrive within this
+    assert peer.applied() == [[0.3, 0.4, 0.5], [1.0, BASELINE, 0.5], [BASELINE, BASELINE, 0.2]]
+    # Counters are reported on /diagnostics every 78 ticks.
+    handle = peer.play(np.full((80, 3), 0.2))
+    peer.wait(handle.get_result_async(), 30.0)
+    wait_until(lambda: bool(peer.diagnostics), 10.0, "a diagnostics message")
+    values = {kv.key: kv.value for kv in peer.diagnostics[-1].status[0].values}
+    assert (
+        values["commands_rejected"] == "3" and values["commands_clamped"] == "1"
+    )  # outside [0, 1]; sub-baseline is normal
+
+
+def test_reset_returns_to_rest(fast_sim: NodeProcess, peer: RigPeer) -> None:
+    peer.wait_for_rig()
+    first = peer.wait(peer.play(np.full((5, 3), BASELINE)).get_result_async(), 30.0).result.samples
+    peer.wait(peer.play(np.tile([0.2, 0.9, 0.2], (200, 1))).get_result_async(), 30.0)
+    response = peer.wait(peer.reset.call_async(Trigger.Request()), 30.0)
+    assert response.success, response.message
+    again = peer.wait(peer.play(np.full((5, 3), BASELINE)).get_result_async(), 30.0).result.samples
+    np.testing.assert_allclose(
+        recording_from_msg(again).position_rad[0], recording_from_msg(first).position_rad[0], atol=1e-3
+    )
+
+
+@pytest.mark.slow
+def test_realtime_mode_ticks_at_78_hz_and_the_watchdog_drops_to_baseline(log_dir: Path) -> None:
+    proc = start_sim(log_dir, "time_mode:=realtime")
+    peer = RigPeer()
+    try:
+        peer.wait_for_rig()
+        wait_until(lambda: len(peer.applied()) > 10, 30.0, "ticks to arrive")
+        with peer.lock:
+            for msgs in peer.received.values():
+                msgs.clear()
+        t0 = time.monotonic()
+        time.sleep(3.0)
+        with peer.lock:
+            n = len(peer.received[contract.JOINT_STATES])
+            stamps = np.array(
+                [
+                    m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+                    for m in peer.received[contract.JOINT_STATES]
+                ]
+            )
+        wall = time.monotonic() - t0
+        periods = np.diff(stamps)
+        jitter = 0.0008
+        assert abs(np.mean(periods) - 1 / NOMINAL_TICK_HZ) < 0.0003
+        assert np.all(periods > 1 / NOMINAL_TICK_HZ - jitter - 1e-6)
+        assert np.all(periods < 1 / NOMINAL_TICK_HZ + jitter + 1e-6)
+        assert abs(n / wall - NOMINAL_TICK_HZ) < 0.1 * NOMINAL_TICK_HZ  # paced by the wall clock
+        # Watchdog: one command, then silence: applied for 3 ticks, then baseline.
+        before = len(peer.applied())
+        peer.cmd.publish(MotorActivation(activation=[0.15, 0.9, 0.15]))
+        time.sleep(0.5)
+        after = peer.applied()[before:]
+        assert sum(a == [0.15, 0.9, 0.15] for a in after) == 3
+        assert after[-1] == [BASELINE] * 3
+    finally:
+        peer.close()
+        assert proc.stop() == 0, proc.log()
