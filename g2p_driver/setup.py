@@ -20,5 +20,10 @@ setup(
     maintainer_email="g2p-rig@example.org",
     description="See package.xml.",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={
+        "console_scripts": [
+            "driver = g2p_driver.driver_node:main",
+            "tendon_check = g2p_driver.tendon_check_main:main",
+        ]
+    },
 )

@@ -16,6 +16,7 @@ import pytest
 from g2p.plant import N_JOINTS, N_MOTORS, Plant, Recording, TickSample, run_sequence
 from g2p.safety import BASELINE_ACTIVATION, clamp_activation
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, TREADMILL_CARRIAGE_HEIGHT_M, MujocoLeg, MujocoLegConfig
+from tests.hardware.rigs import hardware_leg_on_fake_buses
 
 PlantFactory = Callable[[], Plant]
 
@@ -27,6 +28,7 @@ PLANT_FACTORIES = [
     pytest.param(
         lambda: MujocoLeg(MujocoLegConfig(carriage_height_m=AIR_CARRIAGE_HEIGHT_M)), id="mujoco-air"
     ),
+    pytest.param(hardware_leg_on_fake_buses, id="hardware-fake-buses-air"),
 ]
 
 _VECTOR_WIDTHS = {

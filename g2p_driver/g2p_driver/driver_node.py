@@ -1,0 +1,325 @@
+"""`ros2 run g2p_driver driver`: the physical rig as a lifecycle node serving the rig contract.
+
+Lifecycle (lifecycle_msgs services under /leg/driver/):
+    configure   read the rig's YAML, open and set up the devices; motor outputs stay off.
+    activate    serve the rig contract (RigServer, paced by the hardware loop); the plant's reset switches
+                the motor drivers on at baseline tension and waits for the leg to come to rest.
+    deactivate  stop serving; outputs hold baseline tension.
+    cleanup, shutdown, error
+                outputs to baseline, then off; devices released.
+A persistent hardware fault, an exception in the tick loop or a stalled loop drive the node through
+deactivate into error processing (outputs baseline, then off), ending unconfigured. Ctrl-C and SIGTERM
+stop the tick loop and leave the outputs off before the process exits. With `fake_devices:=true` the same
+node runs on the physics-backed fake buses of `g2p.hardware.fakes` (no Raspberry Pi needed).
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import sys
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+import rclpy
+from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import Header
+
+from g2p.config import ConfigError, require, require_positive
+from g2p.hardware import HardwareError, HardwareLeg, HardwareLegConfig, load_rig_config, open_devices
+from g2p.hardware.fakes import FakeRig, FakeRigConfig, fake_devices
+from g2p_ros.contract import DEFAULT_NAMESPACE
+from g2p_ros.params import declare_config
+from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
+
+PACKAGE = "g2p_driver"
+
+
+@dataclass(frozen=True)
+class DriverConfig:
+    """The driver node's own settings (the plant's are under `leg.`, the contract's under `rig.`).
+
+    Attributes:
+        rig_config: path of the rig's YAML description; "" uses the installed config/rig.yaml.
+        fake_devices: run on the physics-backed fake buses (MuJoCo leg) instead of the Pi's devices;
+            `fake.*` parameters set them up.
+        autostart: configure and activate at start-up, for a graph without a lifecycle manager.
+        diagnostics_period_s: wall time between two hardware status messages on /diagnostics (s).
+        stall_fault_s: while active, a tick loop that ran no tick for this long is a fault (s).
+    """
+
+    rig_config: str = ""
+    fake_devices: bool = False
+    autostart: bool = False
+    diagnostics_period_s: float = 1.0
+    stall_fault_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        require_positive(self.diagnostics_period_s, "diagnostics_period_s")
+        require_positive(self.stall_fault_s, "stall_fault_s")
+
+
+def default_rig_config_path() -> Path:
+    """The installed example rig description, share/g2p_driver/config/rig.yaml."""
+    try:
+        return Path(get_package_share_directory(PACKAGE)) / "config" / "rig.yaml"
+    except PackageNotFoundError:
+        return Path(__file__).resolve().parents[1] / "config" / "rig.yaml"
+
+
+class _RosLogHandler(logging.Handler):
+    """Forwards the core library's log records (g2p.hardware) to the node's ROS logger."""
+
+    def __init__(self, node: LifecycleNode) -> None:
+        super().__init__()
+        self._logger = node.get_logger()
+
+    def emit(self, record: logging.LogRecord) -> None:
+        text = self.format(record)
+        if record.levelno >= logging.ERROR:
+            self._logger.error(text)
+        elif record.levelno >= logging.WARNING:
+            self._logger.warning(text)
+        else:
+            self._logger.info(text)
+
+
+class DriverNode(LifecycleNode):
+    """Opens the rig's devices on configure and serves the rig contract while active."""
+
+    def __init__(self) -> None:
+        super().__init__("driver", namespace=DEFAULT_NAMESPACE)
+        self.config = declare_config(self, DriverConfig)
+        self.leg_config = declare_config(self, HardwareLegConfig, "leg.")
+        self.rig_server_config = declare_config(self, RigServerConfig, "rig.")
+        self.fake_config = declare_config(self, FakeRigConfig, "fake.")
+        require(
+            self.leg_config.baseline_activation == self.rig_server_config.baseline_activation,
+            "leg.baseline_activation",
+            f"must equal rig.baseline_activation ({self.rig_server_config.baseline_activation}), "
+            f"got {self.leg_config.baseline_activation}",
+        )
+        self._log_handler = _RosLogHandler(self)
+        logging.getLogger("g2p.hardware").addHandler(self._log_handler)
+        self.leg: HardwareLeg | None = None
+        self.fake: FakeRig | None = None
+        self._server: RigServer | None = None
+        self._retired: list[RigServer] = []
+        self._active = False
+        self._fault: Exception | None = None
+        self._fault_lock = threading.Lock()
+        # The default callback group is mutually exclusive and holds the lifecycle services: a fault
+        # reported by the loop thread is acted on here, never during another transition.
+        self._fault_signal = self.create_guard_condition(self._on_fault_signal)
+        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._diag_timer = self.create_timer(self.config.diagnostics_period_s, self._publish_diagnostics)
+        self._stall_timer = self.create_timer(0.1, self._check_stall)
+
+    # Lifecycle transitions ----------------------------------------------------------------------------
+
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Read the rig description and open the devices (outputs off)."""
+        path = Path(self.config.rig_config) if self.config.rig_config else default_rig_config_path()
+        try:
+            rig = load_rig_config(path)
+            if self.config.fake_devices:
+                self.fake, devices = fake_devices(rig, self.fake_config)
+            else:
+                devices = open_devices(rig)
+            try:
+                self.leg = HardwareLeg(devices, rig, self.leg_config)
+            except BaseException:
+                devices.close()
+                raise
+        except (ConfigError, HardwareError, OSError) as err:
+            self.get_logger().error(f"configure failed: {type(err).__name__}: {err}")
+            self.fake = None
+            return TransitionCallbackReturn.FAILURE
+        where = "fake buses (MuJoCo leg)" if self.fake is not None else "the rig's buses"
+        self.get_logger().info(f"configured from {path} on {where}; motor outputs off")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Serve the rig contract; the plant switches the outputs on at baseline and settles."""
+        assert self.leg is not None
+        self._destroy_retired()
+        with self._fault_lock:
+            self._fault = None
+        server = RigServer(self, self.leg, Pacing.PLANT, self.rig_server_config, on_fault=self._on_loop_fault)
+        try:
+            server.start()
+        except Exception as err:
+            self.get_logger().error(f"activate failed: {type(err).__name__}: {err}")
+            self._retired.append(server)
+            return TransitionCallbackReturn.ERROR
+        self._server = server
+        self._active = True
+        self.get_logger().info(
+            f"active: serving the rig contract in {self.get_namespace()} at {self.leg.tick_hz:g} Hz"
+        )
+        return super().on_activate(state)
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Stop serving; outputs hold baseline. A pending fault turns this into error processing."""
+        self._active = False
+        self._stop_server()
+        with self._fault_lock:
+            fault, self._fault = self._fault, None
+        if self.leg is not None and fault is None:
+            try:
+                self.leg.hold_baseline()
+            except (OSError, HardwareError) as err:
+                fault = err
+        if fault is not None:
+            self.get_logger().error(f"hardware fault: {type(fault).__name__}: {fault}")
+            return TransitionCallbackReturn.ERROR
+        self.get_logger().info("inactive: outputs at baseline")
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Outputs to baseline then off, devices released."""
+        self.make_safe()
+        self.get_logger().info("unconfigured: outputs off, devices released")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Outputs to baseline then off, devices released."""
+        self.make_safe()
+        self.get_logger().info("finalized: outputs off, devices released")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Outputs to baseline then off, devices released; the node ends unconfigured (reconfigurable)."""
+        self.make_safe()
+        self.get_logger().error("error processed: outputs off, devices released; configure to retry")
+        return TransitionCallbackReturn.SUCCESS
+
+    # Safety ---------------------------------------------------------------------------------------------
+
+    def make_safe(self) -> None:
+        """Stop the tick loop, then outputs to baseline and off, devices released; never raises."""
+        self._active = False
+        try:
+            self._stop_server()
+        except Exception as err:  # keep going: the outputs matter more than a clean stop
+            self.get_logger().error(f"stopping the rig server: {type(err).__name__}: {err}")
+        leg, self.leg = self.leg, None
+        if leg is not None:
+            try:
+                leg.close()
+            except Exception as err:
+                self.get_logger().error(f"closing the hardware: {type(err).__name__}: {err}")
+        self.fake = None
+
+    def _stop_server(self) -> None:
+        """Stop the tick loop; the server's entities are destroyed later (a goal may still be finishing)."""
+        server, self._server = self._server, None
+        if server is not None:
+            server.stop()
+            self._retired.append(server)
+
+    def _destroy_retired(self) -> None:
+        while self._retired:
+            server = self._retired.pop()
+            try:
+                server.destroy()
+            except Exception as err:
+                self.get_logger().warning(f"destroying a stopped rig server: {type(err).__name__}: {err}")
+
+    def _on_loop_fault(self, err: Exception) -> None:
+        """From the tick loop thread: record the fault, wake the executor (the plant is at baseline)."""
+        with self._fault_lock:
+            if self._fault is None:
+                self._fault = err
+        self._fault_signal.trigger()
+
+    def _on_fault_signal(self) -> None:
+        if self._active and self._fault is not None:
+            self.get_logger().error("fault in the tick loop: going to error processing")
+            self.trigger_deactivate()
+
+    def _check_stall(self) -> None:
+        leg = self.leg
+        if not self._active or leg is None or not leg.running:
+            return
+        idle = leg.seconds_since_activity()
+        if idle > self.config.stall_fault_s:
+            self._on_loop_fault(RuntimeError(f"the tick loop ran no tick for {idle:.2f} s"))
+
+    def _publish_diagnostics(self) -> None:
+        leg = self.leg
+        values: dict[str, float | int | str] = {"active": int(self._active)}
+        level, message = DiagnosticStatus.OK, "ok"
+        if leg is None:
+            message = "unconfigured: outputs off"
+        else:
+            values.update(leg.diagnostics())
+            c = leg.counters
+            faults = (
+                c.encoder_parity_errors + c.encoder_error_flags + c.spi_errors + c.i2c_errors + c.pwm_errors
+            )
+            if leg.fault is not None:
+                level, message = DiagnosticStatus.ERROR, f"hardware fault: {leg.fault}"
+            elif faults or c.watchdog_trips or c.late_ticks:
+                level = DiagnosticStatus.WARN
+                message = f"{faults} bus faults, {c.watchdog_trips} watchdog trips, {c.late_ticks} late ticks"
+        status = DiagnosticStatus(
+            level=level,
+            name=f"{self.get_fully_qualified_name()}: hardware",
+            hardware_id="g2p rig (fake buses)" if self.fake is not None else "g2p rig",
+            message=message,
+            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
+        )
+        stamp = self.get_clock().now().to_msg()
+        self._pub_diag.publish(DiagnosticArray(header=Header(stamp=stamp), status=[status]))
+
+    def destroy_node(self) -> None:
+        """Outputs safe, the rig servers destroyed, then the node."""
+        self.make_safe()
+        self._destroy_retired()
+        logging.getLogger("g2p.hardware").removeHandler(self._log_handler)
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> None:
+    """Entry point of `ros2 run g2p_driver driver`.
+
+    SIGINT and SIGTERM are handled here rather than by rclpy: they end the spin loop, and the outputs are
+    made safe (tick loop stopped, baseline, off) while the ROS context is still valid, so the loop and
+    any running goal end cleanly before rclpy shuts down.
+    """
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, frame: stop.set())
+    node = None
+    try:
+        node = DriverNode()
+        executor = MultiThreadedExecutor(num_threads=4)
+        executor.add_node(node)
+        if node.config.autostart and node.trigger_configure() == TransitionCallbackReturn.SUCCESS:
+            node.trigger_activate()
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    except ConfigError as err:
+        print(f"g2p_driver: invalid parameter {err}", file=sys.stderr)
+        sys.exit(2)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.make_safe()  # first, on its own: the outputs matter more than tidy teardown
+            try:
+                node.destroy_node()
+            except Exception as err:
+                print(f"g2p_driver: destroying the node: {err}", file=sys.stderr)
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,299 @@
+"""The installed `driver` executable on physics-backed fake buses, driven over ROS 2 like a lifecycle manager.
+
+The fake rig keeps its output state (enable line, duty cycles, activations) in outputs.json in a state
+directory and reads faults to inject from faults.json there: the test checks what the motor drivers
+would see, from outside the driver process.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from action_msgs.msg import GoalStatus
+from diagnostic_msgs.msg import DiagnosticArray
+from lifecycle_msgs.msg import State, Transition, TransitionEvent
+from lifecycle_msgs.srv import ChangeState, GetState
+from rclpy.action import ActionClient
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_srvs.srv import Trigger
+
+from g2p.hardware import RigConfig
+from g2p_interfaces.action import RunActivations
+from g2p_interfaces.msg import MotorActivation
+from g2p_ros import contract
+from g2p_ros.convert import recording_from_msg
+from tests.nodes.rosproc import NodeProcess, RosPeer, wait_until
+
+BASELINE = 0.15
+PWM = RigConfig().pwm  # the installed rig.yaml uses the default map: 10 % .. 90 %
+BASELINE_DUTY = PWM.duty(BASELINE)
+DUTY_STEP = 1.0 / 4096  # PCA9685 resolution
+DEEP_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
+
+
+class LifecyclePeer(RosPeer):
+    """A lifecycle manager and a learner-like client of the rig contract, in one test node."""
+
+    def __init__(self) -> None:
+        super().__init__("driver_peer")
+        self.lock = threading.Lock()
+        self.events: list[TransitionEvent] = []
+        self.applied: list[list[float]] = []
+        self.diagnostics: list[DiagnosticArray] = []
+        self.change = self.node.create_client(ChangeState, "driver/change_state")
+        self.get = self.node.create_client(GetState, "driver/get_state")
+        self.node.create_subscription(TransitionEvent, "driver/transition_event", self._on_event, 10)
+        self.node.create_subscription(
+            MotorActivation, contract.APPLIED_ACTIVATION, self._on_applied, DEEP_QOS
+        )
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 10)
+        self.cmd = self.node.create_publisher(MotorActivation, contract.ACTIVATION_CMD, contract.COMMAND_QOS)
+        self.action = ActionClient(self.node, RunActivations, contract.RUN_ACTIVATIONS)
+        self.reset = self.node.create_client(Trigger, contract.RESET)
+
+    def destroy_entities(self) -> None:
+        self.action.destroy()
+
+    def _on_event(self, msg: TransitionEvent) -> None:
+        with self.lock:
+            self.events.append(msg)
+
+    def _on_applied(self, msg: MotorActivation) -> None:
+        with self.lock:
+            self.applied.append(list(msg.activation))
+
+    def _on_diag(self, msg: DiagnosticArray) -> None:
+        with self.lock:
+            self.diagnostics.append(msg)
+
+    def wait_for_driver(self) -> None:
+        assert self.change.wait_for_service(timeout_sec=30.0), (
+            "the driver's lifecycle services never appeared"
+        )
+        assert self.get.wait_for_service(timeout_sec=10.0)
+
+    def transition(self, transition_id: int, timeout_s: float = 60.0) -> bool:
+        request = ChangeState.Request(transition=Transition(id=transition_id))
+        return bool(self.wait(self.change.call_async(request), timeout_s).success)
+
+    def state(self) -> int:
+        return int(self.wait(self.get.call_async(GetState.Request()), 10.0).current_state.id)
+
+    def goal_states(self) -> list[int]:
+        with self.lock:
+            return [e.goal_state.id for e in self.events]
+
+    def play(self, activations: np.ndarray) -> Any:
+        assert self.action.wait_for_server(timeout_sec=30.0), "run_activations never appeared"
+        goal = RunActivations.Goal(activation=np.asarray(activations, dtype=np.float64).ravel())
+        return self.wait(self.action.send_goal_async(goal), 30.0)
+
+    def hardware_status(self) -> dict[str, str] | None:
+        with self.lock:
+            for msg in reversed(self.diagnostics):
+                for status in msg.status:
+                    if status.name.endswith(": hardware"):
+                        return {kv.key: kv.value for kv in status.values}
+        return None
+
+
+def outputs(state_dir: Path) -> dict[str, Any]:
+    """What the motor drivers see, as the fake rig last wrote it."""
+    return json.loads((state_dir / "outputs.json").read_text())  # type: ignore[no-any-return]
+
+
+def at_baseline(out: dict[str, Any]) -> bool:
+    return bool(out["enabled"]) and all(abs(d - BASELINE_DUTY) <= DUTY_STEP for d in out["duty"])
+
+
+def is_off(out: dict[str, Any]) -> bool:
+    return out["enabled"] is False and out["duty"] == [0.0, 0.0, 0.0] and out["activation"] == [0.0] * 3
+
+
+def start_driver(log_dir: Path, state_dir: Path, *params: str) -> NodeProcess:
+    args = ["--ros-args", "-p", "fake_devices:=true", "-p", f"fake.state_dir:={state_dir}"]
+    for p in params:
+        args += ["-p", p]
+    return NodeProcess("g2p_driver", "driver", args, log_dir)
+
+
+@pytest.fixture
+def state_dir(tmp_path: Path) -> Path:
+    return tmp_path / "fake_rig"
+
+
+@pytest.fixture
+def peer() -> Iterator[LifecyclePeer]:
+    p = LifecyclePeer()
+    yield p
+    p.close()
+
+
+@pytest.fixture
+def driver(tmp_path: Path, state_dir: Path) -> Iterator[NodeProcess]:
+    proc = start_driver(tmp_path, state_dir)
+    yield proc
+    assert proc.stop() == 0, proc.log_path.read_text()
+
+
+def test_lifecycle_serves_the_contract_and_leaves_outputs_safe(
+    driver: NodeProcess, peer: LifecyclePeer, state_dir: Path
+) -> None:
+    peer.wait_for_driver()
+    assert peer.state() == State.PRIMARY_STATE_UNCONFIGURED
+    assert peer.transition(Transition.TRANSITION_CONFIGURE), driver.log()
+    assert peer.state() == State.PRIMARY_STATE_INACTIVE
+    assert is_off(outputs(state_dir))  # configure opens the devices, outputs stay off
+
+    assert peer.transition(Transition.TRANSITION_ACTIVATE), driver.log()
+    assert peer.state() == State.PRIMARY_STATE_ACTIVE
+    assert at_baseline(outputs(state_dir))
+
+    # A learner-like client: M1 alone above baseline flexes the hip (Fig 1d), ticks at about 78 Hz.
+    n = 156
+    handle = peer.play(np.tile([BASELINE, 0.8, BASELINE], (n, 1)))
+    assert handle.accepted
+    response = peer.wait(handle.get_result_async(), 30.0)
+    assert response.status == GoalStatus.STATUS_SUCCEEDED, response.result.message
+    rec = recording_from_msg(response.result.samples)
+    assert len(rec) == n
+    assert rec.position_rad[-1, 0] - rec.position_rad[0, 0] > math.radians(15)
+    # Paced by the hardware loop (a loaded test machine delays a few ticks: the median, not the mean).
+    assert abs(np.median(np.diff(rec.t_s)) * 78.0 - 1.0) < 0.1
+    assert np.all(rec.energy_j[-1] > rec.energy_j[0])
+
+    # Bad commands never reach the PWM: the outputs stay at baseline.
+    for bad in ([math.nan, 0.9, 0.9], [0.9, 0.9], [math.inf, 0.5, 0.5]):
+        peer.cmd.publish(MotorActivation(activation=bad))
+    with peer.lock:
+        before = len(peer.applied)
+    wait_until(lambda: len(peer.applied) > before + 20, 10.0, "more ticks")
+    with peer.lock:
+        assert all(a == [BASELINE] * 3 for a in peer.applied[before:])
+    assert at_baseline(outputs(state_dir))
+
+    response = peer.wait(peer.reset.call_async(Trigger.Request()), 60.0)
+    assert response.success, response.message
+
+    wait_until(lambda: peer.hardware_status() is not None, 10.0, "hardware diagnostics")
+    status = peer.hardware_status()
+    assert status is not None and status["active"] == "1" and status["hardware_faults"] == "0"
+    assert float(status["current_sample_rate_hz"]) > 250.0
+
+    assert peer.transition(Transition.TRANSITION_DEACTIVATE), driver.log()
+    assert peer.state() == State.PRIMARY_STATE_INACTIVE
+    assert at_baseline(outputs(state_dir))  # inactive: tendons held at baseline tension
+
+    assert peer.transition(Transition.TRANSITION_CLEANUP), driver.log()
+    assert is_off(outputs(state_dir))
+    assert outputs(state_dir)["closed"] is True
+    assert peer.transition(Transition.TRANSITION_UNCONFIGURED_SHUTDOWN)
+    assert peer.state() == State.PRIMARY_STATE_FINALIZED
+
+
+def test_persistent_fault_drives_the_node_to_error_processing_with_outputs_off(
+    driver: NodeProcess, peer: LifecyclePeer, state_dir: Path
+) -> None:
+    peer.wait_for_driver()
+    assert peer.transition(Transition.TRANSITION_CONFIGURE), driver.log()
+    assert peer.transition(Transition.TRANSITION_ACTIVATE), driver.log()
+    handle = peer.play(np.tile([0.6, 0.15, 0.6], (20 * 78, 1)))
+    assert handle.accepted
+    wait_until(lambda: len(peer.applied) > 30, 10.0, "the sequence to play")
+    # The distal encoder's frames fail their parity check from now on.
+    (state_dir / "faults.json").write_text(
+        json.dumps([{"kind": "encoder_parity", "target": "distal", "count": -1}])
+    )
+    response = peer.wait(handle.get_result_async(), 30.0)
+    assert response.status == GoalStatus.STATUS_ABORTED
+    assert "plant fault" in response.result.message
+    wait_until(
+        lambda: State.PRIMARY_STATE_UNCONFIGURED in peer.goal_states()[-1:],
+        10.0,
+        "the end of error processing",
+    )
+    assert State.TRANSITION_STATE_ERRORPROCESSING in peer.goal_states()
+    assert peer.state() == State.PRIMARY_STATE_UNCONFIGURED
+    assert is_off(outputs(state_dir))
+    assert "consecutive faulted ticks" in driver.log()
+
+    # The fault persists: configuring again fails and names the device; once fixed, it succeeds.
+    assert not peer.transition(Transition.TRANSITION_CONFIGURE)
+    assert "distal encoder" in driver.log()
+    (state_dir / "faults.json").write_text("[]")
+    assert peer.transition(Transition.TRANSITION_CONFIGURE), driver.log()
+    assert is_off(outputs(state_dir))
+
+
+def test_deactivate_during_a_sequence_aborts_it_and_activating_again_serves_again(
+    driver: NodeProcess, peer: LifecyclePeer, state_dir: Path
+) -> None:
+    peer.wait_for_driver()
+    assert peer.transition(Transition.TRANSITION_CONFIGURE), driver.log()
+    assert peer.transition(Transition.TRANSITION_ACTIVATE), driver.log()
+    handle = peer.play(np.tile([0.15, 0.9, 0.15], (20 * 78, 1)))
+    wait_until(lambda: len(peer.applied) > 30, 10.0, "the sequence to play")
+    assert peer.transition(Transition.TRANSITION_DEACTIVATE), driver.log()
+    assert peer.wait(handle.get_result_async(), 30.0).status == GoalStatus.STATUS_ABORTED
+    assert at_baseline(outputs(state_dir))
+
+    assert peer.transition(Transition.TRANSITION_ACTIVATE), driver.log()
+    response = peer.wait(peer.play(np.full((20, 3), 0.3)).get_result_async(), 30.0)
+    assert response.status == GoalStatus.STATUS_SUCCEEDED
+    assert len(recording_from_msg(response.result.samples)) == 20
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_signals_while_playing_leave_the_outputs_off(
+    tmp_path: Path, state_dir: Path, peer: LifecyclePeer, sig: int
+) -> None:
+    proc = start_driver(tmp_path, state_dir, "autostart:=true")
+    try:
+        handle = peer.play(np.tile([0.9, 0.9, 0.9], (20 * 78, 1)))
+        assert handle.accepted
+        wait_until(lambda: len(peer.applied) > 30, 30.0, "the sequence to play")
+        assert outputs(state_dir)["activation"][0] > 0.8
+    finally:
+        code = proc.stop(sig)
+    assert code == 0, proc.log_path.read_text()
+    out = outputs(state_dir)
+    assert is_off(out) and out["closed"] is True
+
+
+def test_invalid_rig_description_fails_configure_and_names_the_field(
+    tmp_path: Path, state_dir: Path, peer: LifecyclePeer
+) -> None:
+    bad = tmp_path / "rig.yaml"
+    bad.write_text("pwm:\n  frequency_hz: 5000.0\n")
+    proc = start_driver(tmp_path, state_dir, f"rig_config:={bad}")
+    try:
+        peer.wait_for_driver()
+        assert not peer.transition(Transition.TRANSITION_CONFIGURE)
+        assert peer.state() == State.PRIMARY_STATE_UNCONFIGURED
+    finally:
+        assert proc.stop() == 0, proc.log_path.read_text()
+    assert "pwm.frequency_hz" in proc.log_path.read_text()
+
+
+def test_tendon_check_passes_on_the_fake_rig(tmp_path: Path, state_dir: Path) -> None:
+    driver = start_driver(tmp_path, state_dir, "autostart:=true")
+    try:
+        check = NodeProcess("g2p_driver", "tendon_check", [], tmp_path)
+        try:
+            code = check.popen.wait(180.0)
+        finally:
+            check.stop()
+        text = check.log_path.read_text()
+        assert code == 0, text + driver.log()
+        assert "every tendon moves its joints as in Fig 1d" in text
+    finally:
+        assert driver.stop() == 0, driver.log_path.read_text()
+    assert is_off(outputs(state_dir))
