@@ -26,6 +26,7 @@ setup(
             "replay = g2p_ros.replay_node:main",
             "report = g2p_ros.report_main:main",
             "recover_bag = g2p_ros.bag_recover_main:main",
+            "bringup = g2p_ros.bringup_main:main",
         ]
     },
 )

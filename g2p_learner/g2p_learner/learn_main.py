@@ -35,19 +35,31 @@ def _parse(argv: list[str]) -> argparse.Namespace:
     return parser.parse_args(remove_ros_args(argv)[1:])
 
 
-def _show_feedback(msg: Learn.Impl.FeedbackMessage) -> None:
-    fb = msg.feedback
-    if fb.phase == "babbling":
-        print(f"\rbabbling {100 * fb.babbling_progress:5.1f}%", end="", flush=True)
-        if fb.babbling_progress >= 1.0:
-            print()
-        return
-    sigma = f"  sigma {fb.sigma:.3f}" if fb.sigma > 0 else ""
-    print(
-        f"attempt {fb.attempt:3d}  {fb.phase:<12s} reward {fb.reward_mm:7.1f} mm  "
-        f"best {fb.best_reward_mm:7.1f} mm{sigma}",
-        flush=True,
-    )
+class _Progress:
+    """Prints learn feedback: babbling progress in 10% steps, then a line per attempt.
+
+    On a terminal, babbling progress updates one line in place.
+    """
+
+    def __init__(self) -> None:
+        self._tty = sys.stdout.isatty()
+        self._babbling_shown = -1
+
+    def __call__(self, msg: Learn.Impl.FeedbackMessage) -> None:
+        fb = msg.feedback
+        if fb.phase == "babbling":
+            step = int(10 * fb.babbling_progress)
+            if step > self._babbling_shown:
+                self._babbling_shown = step
+                start, end = ("\r", "" if step < 10 else "\n") if self._tty else ("", "\n")
+                print(f"{start}babbling {10 * step:3d}%", end=end, flush=True)
+            return
+        sigma = f"  sigma {fb.sigma:.3f}" if fb.sigma > 0 else ""
+        print(
+            f"attempt {fb.attempt:3d}  {fb.phase:<12s} reward {fb.reward_mm:7.1f} mm  "
+            f"best {fb.best_reward_mm:7.1f} mm{sigma}",
+            flush=True,
+        )
 
 
 def _summary(result: Learn.Result, status_ok: bool) -> str:
@@ -93,7 +105,7 @@ def _run_goal(client: ActionClient, dataset_bag: str, stop: threading.Event) -> 
     if not client.wait_for_server(timeout_sec=30.0):
         print("learn: the learner's action server did not come up", file=sys.stderr)
         return 1
-    send = client.send_goal_async(Learn.Goal(dataset_bag=dataset_bag), feedback_callback=_show_feedback)
+    send = client.send_goal_async(Learn.Goal(dataset_bag=dataset_bag), feedback_callback=_Progress())
     if not _wait(send, stop):
         return 130
     handle = send.result()

@@ -11,16 +11,12 @@ import json
 import math
 import threading
 import time
-import uuid
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
-from g2p_ros.contract import DEFAULT_NAMESPACE
-from g2p_ros.params import config_json, declare_config
-from g2p_ros.rig_client import RigClient
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -29,19 +25,29 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import Header, String
 
 from g2p.attempt import AttemptOutcome
+from g2p.bags.runs import new_run_id
 from g2p.config import require, require_positive
 from g2p.experiments import TreadmillRun, evaluate_fixed_map, random_features, treadmill_result
 from g2p.inverse_map import FitReport
 from g2p.learner import Learner, LearnerConfig
 from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig, check_features
-from g2p.rig import RigCancelled, RigError
+from g2p.plant import Recording
+from g2p.rig import ProgressCallback, RigCancelled, RigError
 from g2p.search import SearchConfig
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_interfaces.msg import InverseMapWeights, LearnerEvent, NamedArray
+from g2p_ros.contract import DEFAULT_NAMESPACE
+from g2p_ros.params import config_json, declare_config
+from g2p_ros.rig_client import RigClient
 
-# Events and maps must reach the recorder whole; the newest map and the configuration stay available to
-# late joiners (transient local).
-EVENT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+# Events, maps and the configuration must reach the recorder whole, even one that joins late: transient
+# local, with a history longer than a run's events.
+EVENT_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 MAP_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=100,
@@ -54,11 +60,6 @@ CONFIG_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-
-
-def new_run_id() -> str:
-    """A run id that sorts by time and does not collide: UTC time to the second plus a random suffix."""
-    return datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ") + "-" + uuid.uuid4().hex[:6]
 
 
 @dataclass(frozen=True)
@@ -128,7 +129,7 @@ class LearnerNode(Node):
         )
         self.rig = RigClient(self, self.config.rig_timeout_s)
         self.learner = Learner(self.config.learner)
-        self.run_id = self.config.run_id or new_run_id()
+        self.run_id = self.config.run_id or new_run_id(datetime.now(timezone.utc), np.random.default_rng())
         self._busy = False
         self._busy_lock = threading.Lock()
         self._cancel = threading.Event()
@@ -261,14 +262,8 @@ class LearnerNode(Node):
         return Babble.Result(sample_count=len(self.learner.dataset), validation_rmse=fit.validation_rmse)
 
     def _babble(self, duration_s: float | None, progress: Callable[[int, int], None]) -> FitReport:
-        self._event("phase_start", phase="babbling")
-        fit = self.learner.babble(self.rig, duration_s, progress, self._cancel)
+        fit = self.learner.babble(_BabblingSegments(self), duration_s, progress, self._cancel)
         self._publish_map(fit)
-        self._event(
-            "phase_end",
-            phase="babbling",
-            detail={"samples": len(self.learner.dataset), "validation_rmse": fit.validation_rmse},
-        )
         return fit
 
     def _execute_attempt(self, goal_handle: ServerGoalHandle) -> Attempt.Result:
@@ -437,8 +432,10 @@ class LearnerNode(Node):
         before, after = [], []
         for k, features in enumerate(test, start=1):
             self._check_cancel(goal_handle)
-            (b,) = evaluate_fixed_map(babbling_map, self.rig, features[None], cycle)
-            (a,) = evaluate_fixed_map(self.learner.inverse_map, self.rig, features[None], cycle)
+            (b,) = evaluate_fixed_map(babbling_map, self.rig, features[None], cycle, self.learner.lead_ticks)
+            (a,) = evaluate_fixed_map(
+                self.learner.inverse_map, self.rig, features[None], cycle, self.learner.lead_ticks
+            )
             before.append(b.mse_deg2)
             after.append(a.mse_deg2)
             feedback("testing", k, a.mse_deg2)
@@ -475,6 +472,12 @@ class LearnerNode(Node):
             setattr(msg, name, float(value))
         self._events.publish(msg)
 
+    def _segment_event(self, event: str, recording: Recording | None = None) -> None:
+        """A babbling segment's start, or its end with where its ticks are (for reading the bag back)."""
+        self._event(
+            event, phase="babbling", detail=_segment_detail(recording) if recording is not None else {}
+        )
+
     def _attempt_end(
         self,
         phase: str,
@@ -488,7 +491,7 @@ class LearnerNode(Node):
             phase=phase,
             attempt=number,
             features=outcome.features,
-            detail={"desired_rad": outcome.desired[:, :2].tolist()},
+            detail={"desired_rad": outcome.desired[:, :2].tolist(), **_segment_detail(outcome.recording)},
             reward_mm=outcome.reward_mm,
             energy_j=outcome.energy_j,
             tracking_mse_deg2=outcome.tracking.mse_deg2,
@@ -510,6 +513,36 @@ class LearnerNode(Node):
                 validation_rmse=fit.validation_rmse,
             )
         )
+
+
+class _BabblingSegments:
+    """The learner's rig while babbling: each sequence played is announced as a babbling segment.
+
+    The events bound each segment's ticks in the recorded topics, so a map rebuilt from the bag sees
+    the same segments the learner saw.
+    """
+
+    def __init__(self, node: LearnerNode) -> None:
+        self._node = node
+
+    def reset(self) -> None:
+        self._node.rig.reset()
+
+    def play(
+        self,
+        activations: np.ndarray,
+        progress: ProgressCallback | None = None,
+        cancel: threading.Event | None = None,
+    ) -> Recording:
+        self._node._segment_event("phase_start")
+        recording = self._node.rig.play(activations, progress, cancel)
+        self._node._segment_event("phase_end", recording)
+        return recording
+
+
+def _segment_detail(recording: Recording) -> dict[str, int]:
+    """Where a played sequence's ticks are: their count and the first one's stamp (ns)."""
+    return {"ticks": len(recording), "first_tick_stamp_ns": round(float(recording.t_s[0]) * 1e9)}
 
 
 def _require_goal(condition: bool, reason: str) -> None:

@@ -15,13 +15,8 @@ FRAME_ID = "leg"
 
 def time_from_seconds(t_s: float) -> Time:
     """A builtin_interfaces/Time from seconds (rounded to the nanosecond)."""
-    ns = round(t_s * 1e9)
+    ns = stamp_ns(t_s)
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
-
-
-def seconds_from_time(stamp: Time) -> float:
-    """Seconds of a builtin_interfaces/Time."""
-    return stamp.sec + stamp.nanosec * 1e-9
 
 
 def tick_messages(
@@ -48,12 +43,15 @@ def tick_messages(
     return joints, treadmill, power, applied
 
 
-def rig_samples_msg(recording: Recording, start_stamp: Time) -> RigSamples:
-    """Pack a recording into RigSamples; times become offsets from the first tick's stamp."""
-    t0 = float(recording.t_s[0]) if len(recording) else 0.0
+def stamp_ns(t_s: float) -> int:
+    """Integer nanoseconds of a stamp in seconds (as `time_from_seconds` rounds it)."""
+    return round(t_s * 1e9)
+
+
+def rig_samples_msg(recording: Recording, stamps_ns: np.ndarray) -> RigSamples:
+    """Pack a recording into RigSamples, with the ticks' header stamps (ns), shape (N,)."""
     return RigSamples(
-        start_stamp=start_stamp,
-        time_s=recording.t_s - t0,
+        stamp_ns=np.asarray(stamps_ns, dtype=np.int64),
         applied_activation=recording.activation.ravel(),
         position_rad=recording.position_rad.ravel(),
         velocity_rad_s=recording.velocity_rad_s.ravel(),
@@ -66,12 +64,12 @@ def rig_samples_msg(recording: Recording, start_stamp: Time) -> RigSamples:
 
 
 def recording_from_msg(msg: RigSamples) -> Recording:
-    """Unpack RigSamples into a Recording with absolute stamps (s).
+    """Unpack RigSamples into a Recording; t_s is each tick's header stamp in seconds (stamp_ns * 1e-9).
 
     Raises:
         ValueError: the arrays' lengths disagree.
     """
-    n = len(msg.time_s)
+    n = len(msg.stamp_ns)
 
     def rows(values: object, width: int, name: str) -> np.ndarray:
         a = np.asarray(values, dtype=np.float64)
@@ -80,7 +78,7 @@ def recording_from_msg(msg: RigSamples) -> Recording:
         return a.reshape(n, width)
 
     return Recording(
-        t_s=seconds_from_time(msg.start_stamp) + np.asarray(msg.time_s, dtype=np.float64),
+        t_s=np.asarray(msg.stamp_ns, dtype=np.int64) * 1e-9,
         activation=rows(msg.applied_activation, N_MOTORS, "applied_activation"),
         position_rad=rows(msg.position_rad, N_JOINTS, "position_rad"),
         velocity_rad_s=rows(msg.velocity_rad_s, N_JOINTS, "velocity_rad_s"),

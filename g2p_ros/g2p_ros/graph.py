@@ -112,7 +112,8 @@ def load_graph(
         where = f"{path}: node {key!r}"
         try:
             params = {k: _substitute(v, subs, where) for k, v in (entry.get("parameters") or {}).items()}
-            params["use_sim_time"] = sim_time
+            if key != "rig":  # the rig is the clock's source and must not subscribe to /clock itself
+                params["use_sim_time"] = sim_time
             params.update(extra.get(key, {}))
             nodes.append(
                 NodeSpec(

@@ -31,7 +31,7 @@ from g2p.safety import ActivationGate, InvalidActivation, check_activation_seque
 from g2p_interfaces.action import RunActivations
 from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
 from g2p_ros import contract
-from g2p_ros.convert import rig_samples_msg, tick_messages, time_from_seconds
+from g2p_ros.convert import rig_samples_msg, stamp_ns, tick_messages, time_from_seconds
 
 
 class Pacing(enum.Enum):
@@ -179,7 +179,7 @@ class RigServer:
             self._running = False
             if self._job is not None:
                 self._job.error = "rig stopped"
-                self._job.done.set()
+                self._finish(self._job)
             self._cv.notify_all()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
@@ -267,9 +267,9 @@ class RigServer:
         with self._cv:
             self._goal_reserved = False
         samples = list(job.samples)
-        stamp = time_from_seconds(self._stamp(samples[0].t_s)) if samples else time_from_seconds(0.0)
+        stamps = np.array([stamp_ns(self._stamp(sample.t_s)) for sample in samples], dtype=np.int64)
         result = RunActivations.Result(
-            samples=rig_samples_msg(Recording.from_samples(samples), stamp),
+            samples=rig_samples_msg(Recording.from_samples(samples), stamps),
             message=job.error or ("cancelled" if job.cancel else ""),
         )
         if job.cancel and goal_handle.is_cancel_requested:
@@ -321,7 +321,13 @@ class RigServer:
                 self._fault(err, job)
                 continue
             self._pace(sample.t_s)
-            self._publish(sample)
+            try:
+                self._publish(sample)
+            except Exception as err:  # the context went down under the loop: the owner makes the plant safe
+                if not self._node.context.ok():
+                    return
+                self._fault(err, job)
+                continue
             if job is not None:
                 self._advance(job, sample)
 

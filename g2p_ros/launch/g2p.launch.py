@@ -11,13 +11,13 @@ from pathlib import Path
 
 import numpy as np
 from ament_index_python.packages import get_package_share_directory
-from g2p_ros.graph import load_graph
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction, Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from g2p.bags.runs import new_run_id
+from g2p_ros.graph import load_graph
 
 
 def _nodes(context, *args, **kwargs):

@@ -7,14 +7,14 @@ import sys
 from dataclasses import dataclass
 
 import rclpy
-from g2p_ros.contract import DEFAULT_NAMESPACE
-from g2p_ros.params import declare_config
-from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 
 from g2p.config import ConfigError
 from g2p.sim import MujocoLeg, MujocoLegConfig
+from g2p_ros.contract import DEFAULT_NAMESPACE
+from g2p_ros.params import declare_config
+from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
 
 
 class TimeMode(enum.Enum):

@@ -57,7 +57,7 @@ class AttemptOutcome:
 
 
 def plan_attempt(
-    features: ArrayLike, inverse_map: InverseMap, cycle: LimitCycleConfig
+    features: ArrayLike, inverse_map: InverseMap, cycle: LimitCycleConfig, lead_ticks: int = 0
 ) -> tuple[FloatArray, FloatArray]:
     """Target kinematics of an attempt and the activations the inverse map predicts for them.
 
@@ -65,6 +65,9 @@ def plan_attempt(
         features: spoke lengths, shape (n_spokes,), within the cycle's feature bounds.
         inverse_map: a fitted map.
         cycle: the limit-cycle parameters (shape, timing, cycles per attempt).
+        lead_ticks: ticks by which each activation is played ahead of the kinematics it is for (the
+            map's command lead, PreprocessConfig.command_lead_ticks); the cycle is periodic, so this
+            rolls the sequence.
 
     Returns:
         (desired kinematics (N, 6), activations (N, 3) in [activation_low, activation_high]), N = cycles x
@@ -74,7 +77,7 @@ def plan_attempt(
         ValueError: invalid features (the message names the index and value).
     """
     desired = attempt_kinematics(features, cycle)
-    return desired, inverse_map.predict(desired)
+    return desired, np.roll(inverse_map.predict(desired), -lead_ticks, axis=0)
 
 
 def tracking_error(desired_rad: ArrayLike, actual_rad: ArrayLike) -> TrackingError:
@@ -102,6 +105,7 @@ def run_attempt(
     inverse_map: InverseMap,
     features: ArrayLike,
     cycle: LimitCycleConfig,
+    lead_ticks: int = 0,
     progress: ProgressCallback | None = None,
     cancel: threading.Event | None = None,
 ) -> AttemptOutcome:
@@ -112,6 +116,7 @@ def run_attempt(
         inverse_map: a fitted map.
         features: spoke lengths, shape (n_spokes,), within the cycle's feature bounds.
         cycle: the limit-cycle parameters.
+        lead_ticks: the map's command lead (see `plan_attempt`).
         progress: called with (ticks done, ticks total).
         cancel: when set, the rig drops to baseline and RigCancelled is raised.
 
@@ -120,7 +125,7 @@ def run_attempt(
         RigError: the rig failed (RigCancelled when cancelled).
     """
     f = np.array(features, dtype=np.float64)
-    desired, activations = plan_attempt(f, inverse_map, cycle)
+    desired, activations = plan_attempt(f, inverse_map, cycle, lead_ticks)
     rig.reset()
     recording = rig.play(activations, progress, cancel)
     return AttemptOutcome(

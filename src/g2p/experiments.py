@@ -178,10 +178,10 @@ def random_features(rng: np.random.Generator, cycle: LimitCycleConfig, n: int) -
 
 
 def evaluate_fixed_map(
-    inverse_map: InverseMap, rig: Rig, trajectories: np.ndarray, cycle: LimitCycleConfig
+    inverse_map: InverseMap, rig: Rig, trajectories: np.ndarray, cycle: LimitCycleConfig, lead_ticks: int
 ) -> tuple[TrackingError, ...]:
-    """Tracking error of a fixed map on each trajectory (no refinement)."""
-    return tuple(run_attempt(rig, inverse_map, f, cycle).tracking for f in trajectories)
+    """Tracking error of a fixed map on each trajectory (no refinement); `lead_ticks` as in `plan_attempt`."""
+    return tuple(run_attempt(rig, inverse_map, f, cycle, lead_ticks).tracking for f in trajectories)
 
 
 def generalization(
@@ -200,8 +200,8 @@ def generalization(
     for f in train:
         learner.attempt(rig, f, cycle, refine=True)
     return GeneralizationResult(
-        evaluate_fixed_map(babbling_map, rig, test, cycle),
-        evaluate_fixed_map(learner.inverse_map, rig, test, cycle),
+        evaluate_fixed_map(babbling_map, rig, test, cycle, learner.lead_ticks),
+        evaluate_fixed_map(learner.inverse_map, rig, test, cycle, learner.lead_ticks),
     )
 
 

@@ -80,6 +80,12 @@ class PreprocessConfig:
     """Longest interval between two stamps that is still interpolated (s); a longer one means lost samples."""
     transition_fraction: float = 0.25
     """Leading fraction of an attempt dropped before refinement (the move away from the rest posture)."""
+    command_lead_ticks: int = 3
+    """Grid samples between a command and the motion it causes: kinematics at sample k are paired with the
+    activation of sample k - command_lead_ticks, and attempts play each activation that much early. The
+    motors' current lag and the tendons' stretch delay the motion; pairing kinematics with the activation
+    of the same sample teaches the map a late command, and refinement then tracks worse with every attempt
+    (docs/ALGORITHM.md, "Command lead"). 3 samples (38 ms) suits the simulated rig; measure it on hardware."""
 
     def __post_init__(self) -> None:
         require_positive(self.rate_hz, "rate_hz")
@@ -115,6 +121,11 @@ class PreprocessConfig:
             0.0 <= self.transition_fraction < 1.0,
             "transition_fraction",
             f"must be in [0, 1), got {self.transition_fraction}",
+        )
+        require(
+            isinstance(self.command_lead_ticks, int) and 0 <= self.command_lead_ticks <= 20,
+            "command_lead_ticks",
+            f"must be an integer in [0, 20], got {self.command_lead_ticks!r}",
         )
 
     @property
@@ -328,8 +339,10 @@ def training_pairs(
         raise ValueError(f"drop_fraction: must be in [0, 1), got {drop_fraction}")
     grid = uniform_grid(t, cfg.rate_hz)
     e = cfg.edge
-    # Leading rows to drop on the grid: the transition, but at least the differentiator's edge.
-    start = max(math.ceil(drop_fraction * len(grid) - 1e-9), e)
+    lead = cfg.command_lead_ticks
+    # Leading rows to drop on the grid: the transition, but at least the differentiator's edge and the
+    # command lead (row k needs the activation of row k - lead).
+    start = max(math.ceil(drop_fraction * len(grid) - 1e-9), e, lead)
     stop = len(grid) - e
     if stop <= start:
         empty = np.empty((0,), dtype=np.float64)
@@ -339,7 +352,7 @@ def training_pairs(
         act = resample_held(t, a, grid)
     else:
         act = resample(t, a, grid, Resampling.LINEAR)
-    return TrainingPairs(grid[start:stop], kin[start - e : stop - e], act[start:stop])
+    return TrainingPairs(grid[start:stop], kin[start - e : stop - e], act[start - lead : stop - lead])
 
 
 def recording_pairs(

@@ -82,6 +82,11 @@ class Learner:
         self.refinements = 0
         self.babbling_recording: Recording | None = None
 
+    @property
+    def lead_ticks(self) -> int:
+        """Ticks each activation is played ahead of the kinematics it is for (the map's command lead)."""
+        return self.config.preprocess.command_lead_ticks
+
     def babble(
         self,
         rig: Rig,
@@ -137,7 +142,7 @@ class Learner:
         Returns:
             The attempt's outcome, and the refinement's report (None when not refined).
         """
-        outcome = run_attempt(rig, self.inverse_map, features, cycle, progress, cancel)
+        outcome = run_attempt(rig, self.inverse_map, features, cycle, self.lead_ticks, progress, cancel)
         return outcome, (
             self.refine_with(outcome.recording, f"attempt {self.refinements + 1}") if refine else None
         )

@@ -225,9 +225,21 @@ def test_training_pairs_from_jittered_samples() -> None:
     expected = np.repeat([sd, sd * np.linalg.norm(k_vel) / DT, sd * np.linalg.norm(k_acc) / DT**2], 2)
     rms = np.sqrt(np.mean((pairs.kinematics - truth) ** 2, axis=0))
     assert np.all(rms < 1.25 * expected)
-    # Activations: the command of the tick that contains each grid stamp.
-    idx = np.searchsorted(t, pairs.t_s, side="left")
+    # Activations: the command of the tick that contains the grid stamp `command_lead_ticks` earlier.
+    idx = np.searchsorted(t, pairs.t_s - cfg.command_lead_ticks * DT, side="left")
     np.testing.assert_array_equal(pairs.activation, a[idx])
+
+
+@pytest.mark.parametrize("lead", [0, 3, 6])
+def test_training_pairs_pair_motion_with_the_command_lead_ticks_earlier(lead: int) -> None:
+    t, q, a = jittered_segment(4)
+    cfg = PreprocessConfig(command_lead_ticks=lead)
+    pairs = training_pairs(t, q, a, cfg)
+    grid = uniform_grid(t, FS)
+    start = max(cfg.edge, lead)
+    np.testing.assert_allclose(pairs.t_s, grid[start : len(grid) - cfg.edge])
+    held = a[np.searchsorted(t, grid, side="left")]
+    np.testing.assert_array_equal(pairs.activation, held[start - lead : len(grid) - cfg.edge - lead])
 
 
 def test_training_pairs_drop_the_transition_on_the_grid() -> None:
@@ -243,7 +255,9 @@ def test_training_pairs_drop_the_transition_on_the_grid() -> None:
 
 def test_linear_activation_resampling_is_selectable() -> None:
     t, q, a = jittered_segment(4)
-    pairs = training_pairs(t, q, a, PreprocessConfig(activation_resampling=ActivationResampling.LINEAR))
+    pairs = training_pairs(
+        t, q, a, PreprocessConfig(activation_resampling=ActivationResampling.LINEAR, command_lead_ticks=0)
+    )
     expected = np.stack([np.interp(pairs.t_s, t, a[:, m]) for m in range(3)], axis=1)
     np.testing.assert_allclose(pairs.activation, expected)
 

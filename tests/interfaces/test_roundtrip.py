@@ -19,8 +19,7 @@ HEADER = Header(stamp=Time(sec=12, nanosec=345_678_901), frame_id="leg")
 def _samples(n: int) -> RigSamples:
     rng = np.random.default_rng(0)
     return RigSamples(
-        start_stamp=Time(sec=3, nanosec=7),
-        time_s=np.arange(n) / 78.0,
+        stamp_ns=3_000_000_007 + np.arange(n, dtype=np.int64) * 12_820_513,
         applied_activation=rng.uniform(0.15, 1, 3 * n),
         position_rad=rng.normal(size=2 * n),
         velocity_rad_s=rng.normal(size=2 * n),

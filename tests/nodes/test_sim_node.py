@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticArray
-from g2p_ros.convert import recording_from_msg
 from rclpy.action import ActionClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -22,6 +21,7 @@ from g2p.plant import NOMINAL_TICK_HZ
 from g2p_interfaces.action import RunActivations
 from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
 from g2p_ros import contract
+from g2p_ros.convert import recording_from_msg
 from tests.nodes.rosproc import NodeProcess, RosPeer, wait_until
 
 BASELINE = 0.15
@@ -150,8 +150,8 @@ def test_run_activations_gives_feedback_and_the_samples_the_topics_carried(
         == stamps[contract.MOTOR_POWER]
         == stamps[contract.APPLIED_ACTIVATION]
     )
-    first = response.result.samples.start_stamp
-    js = joints[(first.sec, first.nanosec)]
+    first = int(response.result.samples.stamp_ns[0])
+    js = joints[divmod(first, 1_000_000_000)]
     assert list(js.name) == ["proximal", "distal"]
     np.testing.assert_array_equal(js.position, rec.position_rad[0])
 
@@ -199,7 +199,7 @@ def test_cancel_drops_to_baseline_within_one_tick(fast_sim: NodeProcess, peer: R
     wait_until(lambda: len(peer.applied()) > 100, 30.0, "the sequence to play")
     peer.wait(handle.cancel_goal_async(), 10.0)
     response = peer.wait(handle.get_result_async(), 30.0)
-    played = len(response.result.samples.time_s)
+    played = len(response.result.samples.stamp_ns)
     assert response.status == GoalStatus.STATUS_CANCELED and played < 50000
     wait_until(lambda: len(peer.applied()) > played, 10.0, "the tick after the cancel")
     applied = peer.applied()

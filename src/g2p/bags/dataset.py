@@ -45,6 +45,7 @@ from g2p.plant import N_JOINTS, Recording, concatenate
 BABBLING = "babbling"
 DEFAULT_RIG_NAMESPACE = "/leg"
 _END_OF_TIME = np.iinfo(np.int64).max
+_STAMP_SLACK_NS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -262,7 +263,9 @@ def _bounds(start: RunEvent, end: RunEvent | None, closes: bool) -> _Bounds:
     count = ticks if isinstance(ticks, int) else (len(desired) if desired is not None else None)
     high = int(_END_OF_TIME) if count is not None else end.stamp_ns
     if isinstance(first, int):
-        return _Bounds(first, high, True, count)
+        # The learner derives the stamp from float seconds, exact to about a microsecond; ticks are
+        # 12.8 ms apart, so a millisecond of slack finds the right tick.
+        return _Bounds(first - _STAMP_SLACK_NS, high, True, count)
     return _Bounds(start.stamp_ns, high, False, count)
 
 
