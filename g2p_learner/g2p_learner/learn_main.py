@@ -24,6 +24,7 @@ from rclpy.utilities import remove_ros_args
 from g2p.config import ConfigError
 from g2p_interfaces.action import Learn
 from g2p_learner.learner_node import LearnerNode
+from g2p_ros.contract import ServerWatch
 
 
 def _parse(argv: list[str]) -> argparse.Namespace:
@@ -102,7 +103,8 @@ def run_learning(node: LearnerNode, dataset_bag: str, stop: threading.Event) -> 
 
 
 def _run_goal(client: ActionClient, dataset_bag: str, stop: threading.Event) -> int:
-    if not client.wait_for_server(timeout_sec=30.0):
+    watch = ServerWatch(client.server_is_ready, lambda t: client.wait_for_server(timeout_sec=t))
+    if not watch.wait_until_ready(30.0):
         print("learn: the learner's action server did not come up", file=sys.stderr)
         return 1
     send = client.send_goal_async(Learn.Goal(dataset_bag=dataset_bag), feedback_callback=_Progress())

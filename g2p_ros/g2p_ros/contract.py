@@ -1,5 +1,8 @@
 """Names and QoS of the rig contract, identical for the simulator and the hardware driver."""
 
+import time
+from collections.abc import Callable
+
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 # Topics and services, relative to the node's namespace (default /leg) so that remapping swaps rigs.
@@ -35,3 +38,35 @@ CLOCK_QOS = QoSProfile(
     reliability=ReliabilityPolicy.BEST_EFFORT,
     durability=DurabilityPolicy.VOLATILE,
 )
+
+# A client that has just discovered a server must give the server time to discover the client's reply
+# reader too: rmw_fastrtps drops a reply whose reader has not matched within 100 ms (ros2/rmw_fastrtps#390),
+# and on a busy machine discovery takes longer. Clients call a server only once they have known it this long.
+DISCOVERY_SETTLE_S = 1.0
+
+
+class ServerWatch:
+    """Waits until a server is available and this client has known it for DISCOVERY_SETTLE_S.
+
+    Args:
+        is_ready: whether the server is available now (e.g. ActionClient.server_is_ready).
+        wait: block until the server is available or a timeout (s) passes; True if available.
+    """
+
+    def __init__(self, is_ready: Callable[[], bool], wait: Callable[[float], bool]) -> None:
+        self._is_ready = is_ready
+        self._wait = wait
+        self._known_since: float | None = None
+
+    def wait_until_ready(self, timeout_s: float) -> bool:
+        """True once the server can be called; False when it did not appear within `timeout_s` (s)."""
+        if not self._is_ready():
+            self._known_since = None  # gone (or never seen): a restarted server is a new one
+            if not self._wait(timeout_s):
+                return False
+        if self._known_since is None:
+            self._known_since = time.monotonic()
+        delay = self._known_since + DISCOVERY_SETTLE_S - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        return True

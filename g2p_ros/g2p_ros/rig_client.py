@@ -41,6 +41,12 @@ class RigClient:
         group = ReentrantCallbackGroup()
         self._action = ActionClient(node, RunActivations, contract.RUN_ACTIVATIONS, callback_group=group)
         self._reset = node.create_client(Trigger, contract.RESET, callback_group=group)
+        self._action_watch = contract.ServerWatch(
+            self._action.server_is_ready, lambda t: self._action.wait_for_server(timeout_sec=t)
+        )
+        self._reset_watch = contract.ServerWatch(
+            self._reset.service_is_ready, lambda t: self._reset.wait_for_service(timeout_sec=t)
+        )
 
     def destroy(self) -> None:
         """Destroy the clients."""
@@ -53,7 +59,7 @@ class RigClient:
         Raises:
             RigError: the rig is not reachable or refused.
         """
-        if not self._reset.wait_for_service(timeout_sec=self._server_timeout_s):
+        if not self._reset_watch.wait_until_ready(self._server_timeout_s):
             raise RigError(f"no rig answers {self._reset.srv_name} within {self._server_timeout_s} s")
         response = _wait(self._reset.call_async(Trigger.Request()), 120.0, "reset")
         if not response.success:
@@ -78,7 +84,7 @@ class RigClient:
             RigCancelled: `cancel` was set.
         """
         seq = check_activation_sequence(activations)
-        if not self._action.wait_for_server(timeout_sec=self._server_timeout_s):
+        if not self._action_watch.wait_until_ready(self._server_timeout_s):
             raise RigError(f"no rig serves {contract.RUN_ACTIVATIONS} within {self._server_timeout_s} s")
 
         def on_feedback(msg: RunActivations.Impl.FeedbackMessage) -> None:

@@ -55,7 +55,8 @@ def test_each_attempt_is_its_own_ticks(run: SyntheticRun) -> None:
 def test_latest_inverse_map(run: SyntheticRun) -> None:
     data = load_training_data(run.path)
     assert data.inverse_map is not None
-    assert data.inverse_map.keys() == run.maps[-1].keys()
+    assert data.inverse_map.keys() == {*run.maps[-1].keys(), "format_version"}
+    assert data.inverse_map["format_version"].tolist() == [1.0]  # the message's field, as to_arrays gives it
     for name, array in run.maps[-1].items():
         np.testing.assert_array_equal(data.inverse_map[name], array)
 

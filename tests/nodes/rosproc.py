@@ -54,7 +54,8 @@ class NodeProcess:
 
     def log(self) -> str:
         """What the process printed so far."""
-        self._log.flush()
+        if not self._log.closed:
+            self._log.flush()
         return self.log_path.read_text(errors="replace")
 
     def stop(self, sig: int = signal.SIGINT, timeout_s: float = 20.0) -> int:

@@ -92,7 +92,10 @@ class LifecyclePeer(RosPeer):
             return [e.goal_state.id for e in self.events]
 
     def play(self, activations: np.ndarray) -> Any:
-        assert self.action.wait_for_server(timeout_sec=30.0), "run_activations never appeared"
+        watch = contract.ServerWatch(
+            self.action.server_is_ready, lambda t: self.action.wait_for_server(timeout_sec=t)
+        )
+        assert watch.wait_until_ready(30.0), "run_activations never appeared"
         goal = RunActivations.Goal(activation=np.asarray(activations, dtype=np.float64).ravel())
         return self.wait(self.action.send_goal_async(goal), 30.0)
 

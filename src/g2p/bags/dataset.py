@@ -126,7 +126,8 @@ class TrainingData:
     Attributes:
         babbling: each babbling segment's samples (contiguous ticks), in order.
         attempts: each attempt's samples, in order.
-        inverse_map: the latest inverse map's arrays (name -> array), None when the bag has none.
+        inverse_map: the latest inverse map's arrays (name -> array) with its format_version, as
+            g2p.inverse_map.InverseMap.to_arrays gives them; None when the bag has none.
     """
 
     babbling: list[Recording]
@@ -200,8 +201,12 @@ def load_training_data(bag: Path | str, rig_namespace: str = DEFAULT_RIG_NAMESPA
     return TrainingData(
         babbling=run.babbling_segments,
         attempts=[a.recording for a in run.attempts],
-        inverse_map=dict(run.inverse_maps[-1].arrays) if run.inverse_maps else None,
+        inverse_map=_map_arrays(run.inverse_maps[-1]) if run.inverse_maps else None,
     )
+
+
+def _map_arrays(snapshot: InverseMapSnapshot) -> dict[str, FloatArray]:
+    return {**snapshot.arrays, "format_version": np.array([float(snapshot.format_version)])}
 
 
 def _babbling(ticks: Ticks, events: list[RunEvent]) -> list[Recording]:

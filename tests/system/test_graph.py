@@ -1,0 +1,217 @@
+"""The whole graph as a user runs it: the installed simulator, learner and recorder executables in their
+own processes, driven over ROS 2 actions by a client, in fast simulation."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from action_msgs.msg import GoalStatus
+from rclpy.action import ActionClient
+
+from g2p.bags.dataset import load_run, load_training_data
+from g2p.inverse_map import InverseMap
+from g2p.learner import Learner, LearnerConfig
+from g2p_interfaces.action import Attempt, Babble, Learn, Track
+from g2p_interfaces.msg import MotorActivation
+from g2p_ros import contract
+from tests.nodes.rosproc import NodeProcess, RosPeer, executable, wait_until
+
+FEATURES = [0.6, 0.5, 0.7, 0.4, 0.6, 0.5, 0.6, 0.7, 0.5, 0.6]
+SHORT = ["-p", "learner.babbling.duration_s:=20.0", "-p", "cycle.n_cycles:=4"]
+
+
+def start_sim(log_dir: Path, namespace: str = "/leg", *extra: str) -> NodeProcess:
+    return NodeProcess(
+        "g2p_sim", "sim", ["--ros-args", "-r", f"__ns:={namespace}", "-p", "time_mode:=fast", *extra], log_dir
+    )
+
+
+def start_learner(log_dir: Path, *extra: str) -> NodeProcess:
+    return NodeProcess(
+        "g2p_learner", "learn", ["--serve", "--ros-args", "-p", "use_sim_time:=true", *SHORT, *extra], log_dir
+    )
+
+
+class LearnerClient(RosPeer):
+    """A user's client of the learner's four actions, plus a view of the rig's applied activations."""
+
+    def __init__(self, rig_namespace: str = "/leg") -> None:
+        super().__init__("learner_client")
+        self.babble = ActionClient(self.node, Babble, "babble")
+        self.attempt = ActionClient(self.node, Attempt, "attempt")
+        self.learn = ActionClient(self.node, Learn, "learn")
+        self.track = ActionClient(self.node, Track, "track")
+        self.applied: list[list[float]] = []
+        self.node.create_subscription(
+            MotorActivation,
+            f"{rig_namespace}/{contract.APPLIED_ACTIVATION}",
+            lambda m: self.applied.append(list(m.activation)),
+            10000,
+        )
+        for client in (self.babble, self.attempt, self.learn, self.track):
+            assert client.wait_for_server(timeout_sec=60.0), "the learner's actions never appeared"
+        time.sleep(contract.DISCOVERY_SETTLE_S)  # see contract.ServerWatch
+
+    def destroy_entities(self) -> None:
+        for client in (self.babble, self.attempt, self.learn, self.track):
+            client.destroy()
+
+    def send(self, client: ActionClient, goal: object, feedback: list[object] | None = None):
+        return self.wait(
+            client.send_goal_async(goal, feedback_callback=feedback.append if feedback is not None else None),
+            30.0,
+        )
+
+    def run(self, client: ActionClient, goal: object, timeout_s: float = 300.0):
+        handle = self.send(client, goal)
+        assert handle.accepted, f"{type(goal).__name__} rejected"
+        return self.wait(handle.get_result_async(), timeout_s)
+
+
+@pytest.fixture
+def graph(tmp_path: Path) -> Iterator[LearnerClient]:
+    sim, learner = start_sim(tmp_path), start_learner(tmp_path)
+    client = LearnerClient()
+    yield client
+    client.close()
+    for proc in (learner, sim):
+        assert proc.stop() == 0, proc.log()
+
+
+def test_babble_attempts_learn_and_track_through_the_graph(graph: LearnerClient) -> None:
+    babbled = graph.run(graph.babble, Babble.Goal(duration_s=20.0))
+    assert babbled.status == GoalStatus.STATUS_SUCCEEDED, babbled.result.message
+    assert babbled.result.sample_count > 1000 and 0 < babbled.result.validation_rmse < 0.3
+    for skip in (False, True):
+        done = graph.run(graph.attempt, Attempt.Goal(features=FEATURES, cycles=3, skip_refinement=skip))
+        assert done.status == GoalStatus.STATUS_SUCCEEDED
+        r = done.result
+        assert math.isfinite(r.reward_mm) and r.energy_j > 0 and r.tracking_mse_deg2 > 0
+        assert r.refined is not skip
+    feedback: list[object] = []
+    handle = graph.send(
+        graph.learn,
+        Learn.Goal(
+            babbling_duration_s=20.0, threshold_mm=1000.0, max_exploration_attempts=2, exploitation_attempts=1
+        ),
+        feedback,
+    )
+    learned = graph.wait(handle.get_result_async(), 300.0)
+    assert learned.status == GoalStatus.STATUS_SUCCEEDED
+    assert learned.result.exploration_attempts == 2 and not learned.result.crossed_threshold
+    assert [f.feedback.attempt for f in feedback if f.feedback.phase != "babbling"] == [1, 2]
+    tracked = graph.run(graph.track, Track.Goal(mode=Track.Goal.MODE_REFINE_ONE, refinements=2))
+    assert tracked.status == GoalStatus.STATUS_SUCCEEDED and len(tracked.result.attempt_mse_deg2) == 3
+
+
+def test_invalid_goals_are_rejected(graph: LearnerClient) -> None:
+    # No map yet: attempts and tracking need babbling first.
+    assert not graph.send(graph.attempt, Attempt.Goal(features=FEATURES)).accepted
+    assert not graph.send(graph.babble, Babble.Goal(duration_s=-1.0)).accepted
+    assert not graph.send(graph.babble, Babble.Goal(duration_s=math.nan)).accepted
+    assert not graph.send(graph.learn, Learn.Goal(dataset_bag="/no/such/bag")).accepted
+    assert not graph.send(graph.track, Track.Goal(mode=7)).accepted
+    assert graph.run(graph.babble, Babble.Goal(duration_s=10.0)).status == GoalStatus.STATUS_SUCCEEDED
+    for bad in (FEATURES[:9], [*FEATURES[:9], 1.5], [*FEATURES[:9], math.nan]):
+        assert not graph.send(graph.attempt, Attempt.Goal(features=bad)).accepted, bad
+    # A second goal while one runs is rejected.
+    running = graph.send(graph.babble, Babble.Goal(duration_s=60.0))
+    assert running.accepted
+    assert not graph.send(graph.attempt, Attempt.Goal(features=FEATURES)).accepted
+    assert graph.wait(running.get_result_async(), 120.0).status == GoalStatus.STATUS_SUCCEEDED
+
+
+def test_cancel_mid_attempt_drops_the_rig_to_baseline_and_the_learner_goes_on(graph: LearnerClient) -> None:
+    assert graph.run(graph.babble, Babble.Goal(duration_s=10.0)).status == GoalStatus.STATUS_SUCCEEDED
+    feedback: list[object] = []
+    handle = graph.send(graph.attempt, Attempt.Goal(features=FEATURES, cycles=200), feedback)
+    wait_until(lambda: any(f.feedback.ticks_done > 200 for f in feedback), 60.0, "the attempt to play")
+    graph.wait(handle.cancel_goal_async(), 10.0)
+    result = graph.wait(handle.get_result_async(), 30.0)
+    assert result.status == GoalStatus.STATUS_CANCELED
+    wait_until(lambda: graph.applied[-1] == [0.15] * 3, 10.0, "the rig at baseline")
+    ticks_at_cancel = len(graph.applied)
+    assert ticks_at_cancel < 200 * 80  # the attempt did not play to its end
+    done = graph.run(graph.attempt, Attempt.Goal(features=FEATURES, cycles=2))
+    assert done.status == GoalStatus.STATUS_SUCCEEDED and done.result.refined
+
+
+def test_the_learner_drives_a_rig_in_another_namespace_by_remapping_only(tmp_path: Path) -> None:
+    sim = start_sim(tmp_path, "/leg2")
+    learner = start_learner(
+        tmp_path, "-r", "run_activations:=/leg2/run_activations", "-r", "reset:=/leg2/reset"
+    )
+    client = LearnerClient(rig_namespace="/leg2")
+    try:
+        assert client.run(client.babble, Babble.Goal(duration_s=10.0)).status == GoalStatus.STATUS_SUCCEEDED
+        assert len(client.applied) >= 10 * 78  # the ticks were played by the rig in /leg2
+    finally:
+        client.close()
+        for proc in (learner, sim):
+            assert proc.stop() == 0, proc.log()
+
+
+def test_the_learner_survives_the_rig_restarting_between_goals(tmp_path: Path) -> None:
+    sim, learner = start_sim(tmp_path), start_learner(tmp_path)
+    client = LearnerClient()
+    try:
+        assert client.run(client.babble, Babble.Goal(duration_s=10.0)).status == GoalStatus.STATUS_SUCCEEDED
+        assert sim.stop() == 0
+        sim = start_sim(tmp_path)
+        done = client.run(client.attempt, Attempt.Goal(features=FEATURES, cycles=2))
+        assert done.status == GoalStatus.STATUS_SUCCEEDED, done.result.message
+    finally:
+        client.close()
+        for proc in (learner, sim):
+            assert proc.stop() == 0, proc.log()
+
+
+def test_make_run_equivalent_records_a_run_whose_map_can_be_rebuilt_from_the_bag(tmp_path: Path) -> None:
+    """The bring-up of the main job, shortened; the map rebuilt from the bag equals the recorded one."""
+    bags = tmp_path / "bags"
+    proc = subprocess.run(
+        [
+            str(executable("g2p_ros", "bringup")),
+            "--bags-dir",
+            str(bags),
+            "--run-id",
+            "test-run",
+            "--set",
+            "learner.learner.babbling.duration_s=20.0",
+            "--set",
+            "learner.cycle.n_cycles=4",
+            "--set",
+            "learner.search.max_exploration_attempts=3",
+            "--set",
+            "learner.search.exploitation_attempts=2",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=tmp_path,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "| test-run |" in proc.stdout
+    bag = bags / "test-run"
+    summary = json.loads((bag / "summary.json").read_text())
+    run = load_run(bag)
+    assert summary["attempt_count"] == len(run.attempts) >= 3
+    assert (bag / "report" / "fig4a_reward.png").is_file()
+    # Rebuild the learner's map from the bag alone, with the configuration recorded in it.
+    config = run.configs["/leg/learner/config"]["learner"]
+    assert config["seed"] == 0
+    data = load_training_data(bag)
+    learner = Learner(LearnerConfig(seed=config["seed"]))
+    learner.fit_babbling(data.babbling)
+    for k, recording in enumerate(data.attempts, start=1):
+        learner.refine_with(recording, f"attempt {k}")
+    recorded = InverseMap.from_arrays(data.inverse_map)
+    x = np.random.default_rng(0).normal(size=(200, 6))
+    np.testing.assert_array_equal(learner.inverse_map.predict(x), recorded.predict(x))
