@@ -6,13 +6,14 @@
 run:
 	scripts/with-env install/g2p_ros/lib/g2p_ros/bringup $(ARGS)
 
-# Every test: core, simulator, bags, nodes and whole-graph tests in real processes.
-test:
+# Lint, then every test: core, simulator, hardware on fake buses, bags, nodes, and the whole graph in
+# real processes.
+test: lint
 	scripts/with-env python -m pytest tests
 
-# ruff and mypy on the core library.
+# ruff (check and format) on everything, mypy --strict on the core library.
 lint:
-	scripts/with-env sh -c 'ruff check src tests benchmarks g2p_ros g2p_sim g2p_learner g2p_driver && mypy'
+	scripts/with-env sh -c 'ruff check . && ruff format --check . && mypy'
 
 bootstrap:
 	scripts/bootstrap

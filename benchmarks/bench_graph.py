@@ -1,0 +1,220 @@
+"""Speed of the ROS graph in fast simulation, against the same work in-process.
+
+    scripts/with-env python benchmarks/bench_graph.py [--ticks 23400] [--skip-full-run]
+
+1. Rig throughput: the installed `sim` in fast mode plays a babbling sequence through `run_activations`
+   while one subscriber (another process) takes every message of every rig topic and /clock; reports
+   simulated seconds per wall second, the messages received against those published, and the sim
+   process's CPU time, for the default real-time-factor cap and without a cap.
+2. The main job: the full G2P run through the graph (sim, recorder, learner as `bringup` starts them)
+   against its simulated rig time, the learner's CPU time and peak memory, and the same run in-process
+   (g2p.experiments.run_treadmill on MujocoLeg) for the overhead ratio.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from rclpy.action import ActionClient
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+
+from g2p.babbling import babbling_activations
+from g2p.bags.dataset import load_run
+from g2p.experiments import run_treadmill
+from g2p.learner import Learner, LearnerConfig
+from g2p.limit_cycle import LimitCycleConfig
+from g2p.rig import PlantRig
+from g2p.search import SearchConfig
+from g2p.sim import MujocoLeg, MujocoLegConfig
+from g2p_interfaces.action import RunActivations
+from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
+from g2p_ros import contract
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def installed(package: str, name: str) -> str:
+    """The executable `ros2 run <package> <name>` runs."""
+    return str(ROOT / "install" / package / "lib" / package / name)
+
+
+def cpu_s(pid: int) -> float:
+    """User + system CPU time of a running process (s)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def peak_rss_mb(pid: int) -> float:
+    """Peak resident memory of a running process (MB)."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def subscriber_main(ticks: int) -> None:
+    """Child process: count every message of every rig topic and /clock until `ticks` ticks arrived."""
+    rclpy.init()
+    node = Node("bench_subscriber", namespace="/leg")
+    counts = {"joint_states": 0, "treadmill": 0, "motor_power": 0, "applied_activation": 0, "clock": 0}
+    deep = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
+
+    def counter(name: str):
+        def count(_msg: object) -> None:
+            counts[name] += 1
+
+        return count
+
+    for name, msg_type in (
+        ("joint_states", JointState),
+        ("treadmill", Treadmill),
+        ("motor_power", MotorPower),
+        ("applied_activation", MotorActivation),
+    ):
+        node.create_subscription(msg_type, name, counter(name), deep)
+    node.create_subscription(Clock, "/clock", counter("clock"), contract.CLOCK_QOS)
+    print("ready", flush=True)
+    deadline = time.monotonic() + 600
+    while counts["applied_activation"] < ticks and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.5)
+    end = time.monotonic() + 2.0
+    while time.monotonic() < end:  # whatever is still in flight
+        rclpy.spin_once(node, timeout_sec=0.1)
+    print(json.dumps(counts), flush=True)
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+def rig_throughput(ticks: int, cap: float) -> dict[str, float]:
+    """Play `ticks` babbling ticks on the fast sim with one subscriber taking everything."""
+    sim = subprocess.Popen(
+        [
+            installed("g2p_sim", "sim"),
+            "--ros-args",
+            "-p",
+            "time_mode:=fast",
+            "-p",
+            f"rig.fast_max_real_time_factor:={cap}",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    sub = subprocess.Popen(
+        [sys.executable, __file__, "--subscriber", str(ticks)], stdout=subprocess.PIPE, text=True
+    )
+    assert sub.stdout is not None
+    sub.stdout.readline()  # "ready"
+    rclpy.init()
+    node = Node("bench_client", namespace="/leg")
+    executor = MultiThreadedExecutor()
+    executor.add_node(node)
+    threading.Thread(target=executor.spin, daemon=True).start()
+    client = ActionClient(node, RunActivations, contract.RUN_ACTIVATIONS)
+    watch = contract.ServerWatch(client.server_is_ready, lambda t: client.wait_for_server(timeout_sec=t))
+    assert watch.wait_until_ready(60.0)
+    time.sleep(2.0)  # let the subscriber match the rig's publishers
+    activations = babbling_activations(np.random.default_rng(0), n_samples=ticks)
+    cpu0, t0 = cpu_s(sim.pid), time.perf_counter()
+    goal = client.send_goal_async(RunActivations.Goal(activation=activations.ravel()))
+    while not goal.done():
+        time.sleep(0.01)
+    result = goal.result().get_result_async()
+    while not result.done():
+        time.sleep(0.01)
+    wall, cpu = time.perf_counter() - t0, cpu_s(sim.pid) - cpu0
+    samples = result.result().result.samples
+    sim_s = (samples.stamp_ns[-1] - samples.stamp_ns[0]) * 1e-9
+    counts = json.loads(sub.communicate(timeout=120)[0].strip().splitlines()[-1])
+    client.destroy()
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.shutdown()
+    sim.send_signal(2)
+    sim.wait(20)
+    return {
+        "cap": cap,
+        "ticks": ticks,
+        "sim_s": sim_s,
+        "wall_s": wall,
+        "real_time_factor": sim_s / wall,
+        "sim_cpu_s": cpu,
+        "received": counts,
+        "published_per_topic": ticks,
+    }
+
+
+def full_run() -> dict[str, float]:
+    """The main job through the graph, then the same run in-process."""
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        bringup = subprocess.Popen(
+            [installed("g2p_ros", "bringup"), "--bags-dir", tmp, "--run-id", "bench", "--no-report"],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        learner_pid, learner_cpu, learner_rss = None, 0.0, 0.0
+        while bringup.poll() is None:
+            if learner_pid is None:
+                out = subprocess.run(["pgrep", "-f", "lib/g2p_learner/learn"], capture_output=True, text=True)
+                learner_pid = int(out.stdout.split()[0]) if out.stdout.strip() else None
+            if learner_pid is not None:
+                try:
+                    learner_cpu, learner_rss = cpu_s(learner_pid), max(learner_rss, peak_rss_mb(learner_pid))
+                except (FileNotFoundError, ProcessLookupError):
+                    pass
+            time.sleep(0.2)
+        wall = time.perf_counter() - t0
+        t_s = load_run(Path(tmp) / "bench").ticks.recording.t_s
+        sim_s = float(t_s[-1] - t_s[0])
+
+    t0 = time.perf_counter()
+    run_treadmill(
+        Learner(LearnerConfig()), PlantRig(MujocoLeg(MujocoLegConfig())), SearchConfig(), LimitCycleConfig()
+    )
+    in_process = time.perf_counter() - t0
+    return {
+        "graph_wall_s": wall,
+        "rig_time_s": sim_s,
+        "real_time_factor": sim_s / wall,
+        "in_process_wall_s": in_process,
+        "overhead": wall / in_process,
+        "learner_cpu_s": learner_cpu,
+        "learner_peak_rss_mb": learner_rss,
+    }
+
+
+def main() -> None:
+    """Run both measurements and print them as JSON."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ticks", type=int, default=23400, help="ticks for the rig throughput (5 min)")
+    parser.add_argument("--caps", default="30.0,0.0", help="real-time-factor caps to measure (0 = none)")
+    parser.add_argument("--skip-full-run", action="store_true")
+    parser.add_argument("--subscriber", type=int, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.subscriber:
+        subscriber_main(args.subscriber)
+        return
+    results: dict[str, object] = {
+        "rig": [rig_throughput(args.ticks, float(cap)) for cap in args.caps.split(",")]
+    }
+    if not args.skip_full_run:
+        results["full_run"] = full_run()
+    print(json.dumps(results, indent=1))
+
+
+if __name__ == "__main__":
+    main()
