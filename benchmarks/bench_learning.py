@@ -8,15 +8,22 @@ Runs, for each seed, on a fresh simulated rig (MujocoLeg) with the default confi
   generalization: babbling in the air, refinement on 30 random trajectories, then the babbling-only and
       the refined map, both fixed, on 30 unseen trajectories (paper Fig 5b).
 Writes results.json and figures into --out, and prints a markdown table beside the paper's figures.
+
+Variants for measurements (docs/ALGORITHM.md, "Tracking on the simulated rig"):
+    --set preprocess.command_lead_ticks=2 --set inverse_map.normalization=zscore   (LearnerConfig fields)
+    --model path/to/leg.xml     (another MJCF for the simulated rig)
+    --train 15                  (generalization training trajectories; the paper's 30 by default)
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -40,13 +47,57 @@ PAPER = {
 }
 
 
-def treadmill(seed: int) -> dict[str, Any]:
+@dataclass(frozen=True)
+class Setup:
+    """What a benchmark run varies from the defaults.
+
+    Attributes:
+        overrides: (section, field, value) for LearnerConfig: section "preprocess" or "inverse_map".
+        model_path: MJCF of the simulated rig; "" = the packaged leg.
+        n_train: generalization training trajectories (paper: 30).
+    """
+
+    overrides: tuple[tuple[str, str, Any], ...] = ()
+    model_path: str = ""
+    n_train: int = 30
+
+    def learner_config(self, seed: int) -> LearnerConfig:
+        """The default LearnerConfig with this setup's overrides."""
+        cfg = LearnerConfig(seed=seed)
+        for section, name, value in self.overrides:
+            cfg = replace(cfg, **{section: replace(getattr(cfg, section), **{name: value})})
+        return cfg
+
+    def plant(self, seed: int, carriage_height_m: float | None = None) -> PlantRig:
+        """A fresh simulated rig for one seed."""
+        cfg = MujocoLegConfig(seed=seed, model_path=self.model_path)
+        if carriage_height_m is not None:
+            cfg = replace(cfg, carriage_height_m=carriage_height_m)
+        return PlantRig(MujocoLeg(cfg))
+
+
+def parse_override(text: str) -> tuple[str, str, Any]:
+    """'preprocess.command_lead_ticks=2' -> ('preprocess', 'command_lead_ticks', 2)."""
+    key, sep, raw = text.partition("=")
+    section, dot, name = key.partition(".")
+    if not sep or not dot or section not in ("preprocess", "inverse_map"):
+        raise argparse.ArgumentTypeError(
+            f"expected preprocess.FIELD=VALUE or inverse_map.FIELD=VALUE, got {text!r}"
+        )
+    try:
+        value = ast.literal_eval(raw)
+    except (ValueError, SyntaxError):
+        value = raw
+    return section, name, value
+
+
+def treadmill(seed: int, setup: Setup = Setup()) -> dict[str, Any]:
     """One treadmill run (paper Fig 4)."""
     t0 = time.perf_counter()
-    learner = Learner(LearnerConfig(seed=seed))
+    learner = Learner(setup.learner_config(seed))
     cycle = LimitCycleConfig()
     search = SearchConfig()
-    result = run_treadmill(learner, PlantRig(MujocoLeg(MujocoLegConfig(seed=seed))), search, cycle)
+    result = run_treadmill(learner, setup.plant(seed), search, cycle)
     wall = time.perf_counter() - t0
     rewards = [r.outcome.reward_mm for r in result.reports]
     first_cross = next((i + 1 for i, r in enumerate(rewards) if r > search.threshold_mm), None)
@@ -66,29 +117,29 @@ def treadmill(seed: int) -> dict[str, Any]:
     }
 
 
-def _air_learner(seed: int) -> tuple[Learner, PlantRig, LimitCycleConfig]:
-    learner = Learner(LearnerConfig(seed=seed))
-    rig = PlantRig(MujocoLeg(MujocoLegConfig(seed=seed, carriage_height_m=AIR_CARRIAGE_HEIGHT_M)))
+def _air_learner(seed: int, setup: Setup) -> tuple[Learner, PlantRig, LimitCycleConfig]:
+    learner = Learner(setup.learner_config(seed))
+    rig = setup.plant(seed, AIR_CARRIAGE_HEIGHT_M)
     learner.babble(rig)
     cycle = replace(LimitCycleConfig(), feature_low=AIR_FEATURE_BOUNDS[0], feature_high=AIR_FEATURE_BOUNDS[1])
     return learner, rig, cycle
 
 
-def air(seed: int) -> dict[str, Any]:
+def air(seed: int, setup: Setup = Setup()) -> dict[str, Any]:
     """One trajectory in the air, refined 5 times (paper Fig 5a)."""
-    learner, rig, cycle = _air_learner(seed)
+    learner, rig, cycle = _air_learner(seed, setup)
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(4)[3])
     outcomes = refine_one_trajectory(learner, rig, random_features(rng, cycle, 1)[0], cycle, refinements=5)
     mse = [o.tracking.mse_deg2 for o in outcomes]
     return {"seed": seed, "mse_deg2": mse, "ratio": mse[-1] / mse[0]}
 
 
-def general(seed: int) -> dict[str, Any]:
+def general(seed: int, setup: Setup = Setup()) -> dict[str, Any]:
     """Generalization to unseen trajectories (paper Fig 5b)."""
-    learner, rig, cycle = _air_learner(seed)
+    learner, rig, cycle = _air_learner(seed, setup)
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(4)[3])
     train, test = random_features(rng, cycle, 30), random_features(rng, cycle, 30)
-    g = generalization(learner, rig, cycle, train, test)
+    g = generalization(learner, rig, cycle, train[: setup.n_train], test)
     return {
         "seed": seed,
         "babbling_mse_deg2": [e.mse_deg2 for e in g.babbling_map],
@@ -118,7 +169,11 @@ def summarize(results: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
         out["median_run_wall_s"] = float(np.median([r["wall_s"] for r in t]))
     a = results.get("air", [])
     if a:
-        out["air_median_mse_ratio"] = float(np.median([r["ratio"] for r in a]))
+        ratios = [r["ratio"] for r in a]
+        out["air_median_mse_ratio"] = float(np.median(ratios))
+        # The spread across seeds: single runs range over a factor of ten (docs/ALGORITHM.md).
+        out["air_mse_ratio_quartiles"] = np.percentile(ratios, [25, 75]).tolist()
+        out["air_share_improved"] = float(np.mean(np.array(ratios) < 1.0))
         out["air_median_mse_by_attempt_deg2"] = np.median([r["mse_deg2"] for r in a], axis=0).tolist()
     g = results.get("generalization", [])
     if g:
@@ -129,6 +184,9 @@ def summarize(results: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
         out["generalization_reduction"] = float(1 - np.median(after) / np.median(before))
         out["generalization_share_improved"] = float(np.mean(after < before))
         out["generalization_median_reduction_per_seed"] = float(np.median([r["reduction"] for r in g]))
+        out["generalization_reduction_per_seed_quartiles"] = np.percentile(
+            [r["reduction"] for r in g], [25, 75]
+        ).tolist()
     return out
 
 
@@ -187,18 +245,43 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=2, help="worker processes")
     parser.add_argument("--experiments", default="treadmill,air,generalization")
     parser.add_argument("--out", type=Path, default=Path("docs/results"))
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        type=parse_override,
+        default=[],
+        metavar="SECTION.FIELD=VALUE",
+        help="override a LearnerConfig field, e.g. preprocess.command_lead_ticks=2 (repeatable)",
+    )
+    parser.add_argument("--model", default="", help="MJCF of the simulated rig (default: the packaged leg)")
+    parser.add_argument("--train", type=int, default=30, help="generalization training trajectories")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    runners = {"treadmill": treadmill, "air": air, "generalization": general}
+    setup = Setup(tuple(args.overrides), args.model, args.train)
+    runners = {
+        "treadmill": partial(treadmill, setup=setup),
+        "air": partial(air, setup=setup),
+        "generalization": partial(general, setup=setup),
+    }
     results: dict[str, list[dict[str, Any]]] = {}
+    wall_s: dict[str, float] = {}
     with ProcessPoolExecutor(args.jobs) as pool:
         for name in args.experiments.split(","):
             t0 = time.perf_counter()
             results[name] = list(pool.map(runners[name], range(args.seeds)))
-            print(f"{name}: {args.seeds} seeds in {time.perf_counter() - t0:.0f} s", flush=True)
+            wall_s[name] = time.perf_counter() - t0
+            print(f"{name}: {args.seeds} seeds in {wall_s[name]:.0f} s", flush=True)
     summary = summarize(results)
+    summary["wall_s"] = {**wall_s, "total": sum(wall_s.values())}
+    summary["jobs"] = args.jobs
+    config = {
+        "overrides": [list(o) for o in setup.overrides],
+        "model": setup.model_path,
+        "train": setup.n_train,
+    }
     (args.out / "results.json").write_text(
-        json.dumps({"summary": summary, "paper": PAPER, "runs": results}, indent=1)
+        json.dumps({"summary": summary, "paper": PAPER, "setup": config, "runs": results}, indent=1)
     )
     plot(results, args.out)
     for key, value in summary.items():

@@ -86,6 +86,15 @@ class PreprocessConfig:
     motors' current lag and the tendons' stretch delay the motion; pairing kinematics with the activation
     of the same sample teaches the map a late command, and refinement then tracks worse with every attempt
     (docs/ALGORITHM.md, "Command lead"). 3 samples (38 ms) suits the simulated rig; measure it on hardware."""
+    command_at_tick_middle: bool = True
+    """With HOLD activations, pair kinematics at grid time t with the command held at t - (lead + 0.5) grid
+    intervals, the middle of the tick that ended `command_lead_ticks` ticks before t, instead of at
+    t - lead intervals. Grid stamps fall on tick boundaries (the grid starts at the first tick's end), where
+    the held command is ambiguous: depending on the jitter, about half of the pairs got the command of the
+    next tick, which had not yet acted on the angles it was paired with. An attempt plays the activation
+    for desired row k + lead during tick k and compares the angle at the end of tick k + lead with that row:
+    lead whole ticks from the end of the command's tick to the kinematics, which the middle pairing
+    reproduces (docs/ALGORITHM.md, "Command pairing"). False: the boundary pairing."""
 
     def __post_init__(self) -> None:
         require_positive(self.rate_hz, "rate_hz")
@@ -341,18 +350,23 @@ def training_pairs(
     e = cfg.edge
     lead = cfg.command_lead_ticks
     # Leading rows to drop on the grid: the transition, but at least the differentiator's edge and the
-    # command lead (row k needs the activation of row k - lead).
-    start = max(math.ceil(drop_fraction * len(grid) - 1e-9), e, lead)
+    # command lead (row k needs the activation of row k - lead, or of the middle of the tick before it).
+    hold = cfg.activation_resampling is ActivationResampling.HOLD
+    middle = hold and cfg.command_at_tick_middle
+    start = max(math.ceil(drop_fraction * len(grid) - 1e-9), e, lead + 1 if middle else lead)
     stop = len(grid) - e
     if stop <= start:
         empty = np.empty((0,), dtype=np.float64)
         return TrainingPairs(empty, np.empty((0, N_KINEMATICS)), np.empty((0, 3)))
     kin = differentiate(resample(t, q, grid, cfg.resampling), cfg)  # rows e .. len(grid) - e
-    if cfg.activation_resampling is ActivationResampling.HOLD:
-        act = resample_held(t, a, grid)
+    kin = kin[start - e : stop - e]
+    if middle:
+        act = resample_held(t, a, grid[start:stop] - (lead + 0.5) * cfg.dt_s)
+    elif hold:
+        act = resample_held(t, a, grid)[start - lead : stop - lead]
     else:
-        act = resample(t, a, grid, Resampling.LINEAR)
-    return TrainingPairs(grid[start:stop], kin[start - e : stop - e], act[start - lead : stop - lead])
+        act = resample(t, a, grid, Resampling.LINEAR)[start - lead : stop - lead]
+    return TrainingPairs(grid[start:stop], kin, act)
 
 
 def recording_pairs(

@@ -225,8 +225,9 @@ def test_training_pairs_from_jittered_samples() -> None:
     expected = np.repeat([sd, sd * np.linalg.norm(k_vel) / DT, sd * np.linalg.norm(k_acc) / DT**2], 2)
     rms = np.sqrt(np.mean((pairs.kinematics - truth) ** 2, axis=0))
     assert np.all(rms < 1.25 * expected)
-    # Activations: the command of the tick that contains the grid stamp `command_lead_ticks` earlier.
-    idx = np.searchsorted(t, pairs.t_s - cfg.command_lead_ticks * DT, side="left")
+    # Activations: the command of the tick that contains the time `command_lead_ticks` + 0.5 grid intervals
+    # earlier (the middle of the tick that ended `command_lead_ticks` ticks before the kinematics).
+    idx = np.searchsorted(t, pairs.t_s - (cfg.command_lead_ticks + 0.5) * DT, side="left")
     np.testing.assert_array_equal(pairs.activation, a[idx])
 
 
@@ -236,10 +237,51 @@ def test_training_pairs_pair_motion_with_the_command_lead_ticks_earlier(lead: in
     cfg = PreprocessConfig(command_lead_ticks=lead)
     pairs = training_pairs(t, q, a, cfg)
     grid = uniform_grid(t, FS)
+    start = max(cfg.edge, lead + 1)
+    np.testing.assert_allclose(pairs.t_s, grid[start : len(grid) - cfg.edge])
+    middle = grid[start : len(grid) - cfg.edge] - (lead + 0.5) * DT
+    np.testing.assert_array_equal(pairs.activation, a[np.searchsorted(t, middle, side="left")])
+
+
+@pytest.mark.parametrize("lead", [0, 3, 6])
+def test_boundary_pairing_is_selectable(lead: int) -> None:
+    t, q, a = jittered_segment(4)
+    cfg = PreprocessConfig(command_lead_ticks=lead, command_at_tick_middle=False)
+    pairs = training_pairs(t, q, a, cfg)
+    grid = uniform_grid(t, FS)
     start = max(cfg.edge, lead)
     np.testing.assert_allclose(pairs.t_s, grid[start : len(grid) - cfg.edge])
     held = a[np.searchsorted(t, grid, side="left")]
     np.testing.assert_array_equal(pairs.activation, held[start - lead : len(grid) - cfg.edge - lead])
+
+
+def ticks_around_nominal(rng: np.random.Generator, n: int, jitter_s: float) -> np.ndarray:
+    """End-of-tick stamps k / 78 s + U(-jitter, +jitter): jitter that does not accumulate; the first exact."""
+    return 2.0 + np.arange(n) * DT + np.concatenate([[0.0], rng.uniform(-jitter_s, jitter_s, n - 1)])
+
+
+@pytest.mark.parametrize("lead", [0, 1, 3])
+def test_middle_pairing_gives_the_tick_that_ended_lead_ticks_before(lead: int) -> None:
+    # Known answer: tick i's activation is its index, its stamp the end of the tick, within a quarter tick
+    # of i / 78 s. The row at the end of tick k must get tick k - lead's command: the command that acted
+    # during the whole tick that ended `lead` ticks before the angle was read. This is how an attempt plays
+    # a map with that lead (the activation for row k + lead during tick k).
+    rng = np.random.default_rng(11)
+    n = 400
+    t = ticks_around_nominal(rng, n, 0.25 * DT)
+    q = np.zeros((n, 2))
+    a = np.repeat(np.arange(n, dtype=np.float64)[:, None], 3, axis=1)
+    cfg = PreprocessConfig(command_lead_ticks=lead)
+    pairs = training_pairs(t, q, a, cfg)
+    k = np.rint((pairs.t_s - t[0]) * FS).astype(int)  # the tick whose end each row sits at
+    np.testing.assert_array_equal(pairs.activation[:, 0], k - lead)
+    # The boundary pairing is ambiguous: a grid stamp a hair after the end of tick k - lead holds the next
+    # tick's command, which had not yet acted on the angle: about half of the rows here.
+    boundary_cfg = PreprocessConfig(command_lead_ticks=lead, command_at_tick_middle=False)
+    boundary = training_pairs(t, q, a, boundary_cfg)
+    late = boundary.activation[:, 0] - (np.rint((boundary.t_s - t[0]) * FS) - lead)
+    assert set(np.unique(late)) == {0.0, 1.0}
+    assert 0.2 < np.mean(late == 1.0) < 0.8
 
 
 def test_training_pairs_drop_the_transition_on_the_grid() -> None:
