@@ -18,7 +18,7 @@ setup(
     zip_safe=True,
     maintainer="G2P rig maintainers",
     maintainer_email="g2p-rig@example.org",
-    description="See package.xml.",
+    description="Raspberry Pi driver for the physical G2P rig, serving the rig contract.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

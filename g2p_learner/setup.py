@@ -18,7 +18,7 @@ setup(
     zip_safe=True,
     maintainer="G2P rig maintainers",
     maintainer_email="g2p-rig@example.org",
-    description="See package.xml.",
+    description="G2P learner: motor babbling, inverse-map refinement and reward search as ROS 2 actions.",
     license="Apache-2.0",
     entry_points={"console_scripts": ["learn = g2p_learner.learn_main:main"]},
 )

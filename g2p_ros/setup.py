@@ -18,7 +18,10 @@ setup(
     zip_safe=True,
     maintainer="G2P rig maintainers",
     maintainer_email="g2p-rig@example.org",
-    description="See package.xml.",
+    description=(
+        "ROS 2 parts shared by the G2P nodes (rig contract, parameters, message conversion, rig server)"
+        " and the run tools: recorder, replay, report, bag recovery, bring-up."
+    ),
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

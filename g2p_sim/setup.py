@@ -18,7 +18,7 @@ setup(
     zip_safe=True,
     maintainer="G2P rig maintainers",
     maintainer_email="g2p-rig@example.org",
-    description="See package.xml.",
+    description="MuJoCo simulation of the G2P tendon-driven leg on a treadmill, serving the rig contract.",
     license="Apache-2.0",
     entry_points={"console_scripts": ["sim = g2p_sim.sim_node:main"]},
 )

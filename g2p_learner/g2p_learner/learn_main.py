@@ -63,10 +63,11 @@ class _Progress:
         )
 
 
-def _summary(result: Learn.Result, status_ok: bool) -> str:
+def _summary(result: Learn.Result, status_ok: bool, threshold_mm: float) -> str:
     lines = [
         "",
-        "| run | crossed 64 mm | exploration attempts | exploitation attempts | best reward (mm) |",
+        f"| run | crossed {threshold_mm:g} mm | exploration attempts | exploitation attempts "
+        "| best reward (mm) |",
         "| --- | --- | --- | --- | --- |",
         f"| {result.run_id} | {'yes' if result.crossed_threshold else 'no'} | {result.exploration_attempts} "
         f"| {result.exploitation_attempts} | {result.best_reward_mm:.1f} |",
@@ -97,12 +98,12 @@ def run_learning(node: LearnerNode, dataset_bag: str, stop: threading.Event) -> 
     """
     client = ActionClient(node, Learn, "learn")
     try:
-        return _run_goal(client, dataset_bag, stop)
+        return _run_goal(client, dataset_bag, stop, node.config.search.threshold_mm)
     finally:
         client.destroy()
 
 
-def _run_goal(client: ActionClient, dataset_bag: str, stop: threading.Event) -> int:
+def _run_goal(client: ActionClient, dataset_bag: str, stop: threading.Event, threshold_mm: float) -> int:
     watch = ServerWatch(client.server_is_ready, lambda t: client.wait_for_server(timeout_sec=t))
     if not watch.wait_until_ready(30.0):
         print("learn: the learner's action server did not come up", file=sys.stderr)
@@ -122,7 +123,7 @@ def _run_goal(client: ActionClient, dataset_bag: str, stop: threading.Event) -> 
         return 130
     response = result_future.result()
     ok = response.status == GoalStatus.STATUS_SUCCEEDED
-    print(_summary(response.result, ok), flush=True)
+    print(_summary(response.result, ok, threshold_mm), flush=True)
     return 0 if ok else 1
 
 
