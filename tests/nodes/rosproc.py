@@ -18,7 +18,7 @@ from typing import Any
 
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.task import Future
 
@@ -83,7 +83,9 @@ class RosPeer:
         self.context = Context()
         rclpy.init(context=self.context)
         self.node = Node(name, namespace=namespace, context=self.context)
-        self.executor = MultiThreadedExecutor(num_threads=3, context=self.context)
+        # Single-threaded: rclpy's MultiThreadedExecutor can fall behind a 78 Hz topic on a loaded machine
+        # (ros2/rclpy#1452); the test's own thread waits on futures, so one spinning thread is enough.
+        self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._thread = threading.Thread(target=self.executor.spin, daemon=True)
         self._thread.start()
