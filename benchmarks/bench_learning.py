@@ -41,7 +41,7 @@ PAPER = {
     "median_attempts_to_cross": "14-24",
     "median_best_reward_mm": 188.0,
     "median_exploitation_improvement_mm": 45.5,
-    "air_mse_ratio": "falls every attempt",
+    "air_median_mse_ratio": "falls every attempt",
     "generalization_reduction": 0.7537,
     "generalization_share_improved": 0.967,
 }
