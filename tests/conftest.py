@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import fcntl
 import os
+import sys
+from collections.abc import Iterator
 from pathlib import Path
+
+import pytest
 
 # Fast DDS must never send discovery traffic beyond loopback, in this process and its children.
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -30,3 +34,12 @@ def _claim_domain_id() -> int:
 
 _held_locks: list[object] = []
 os.environ["ROS_DOMAIN_ID"] = str(_claim_domain_id())
+
+
+@pytest.fixture(autouse=True)
+def _stop_leftover_processes() -> Iterator[None]:
+    """After each test, stop the node processes it left running (only tests that started any)."""
+    yield
+    rosproc = sys.modules.get("tests.nodes.rosproc")
+    if rosproc is not None:
+        rosproc.stop_leftovers()

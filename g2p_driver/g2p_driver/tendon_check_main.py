@@ -10,7 +10,6 @@ Parameters: levels, hold_s, threshold_deg (g2p.hardware.bringup.TendonCheckConfi
 from __future__ import annotations
 
 import sys
-import threading
 
 import rclpy
 from rclpy.executors import MultiThreadedExecutor
@@ -22,6 +21,7 @@ from g2p.rig import RigError
 from g2p_ros.contract import DEFAULT_NAMESPACE
 from g2p_ros.params import declare_config
 from g2p_ros.rig_client import RigClient
+from g2p_ros.spinner import BackgroundSpinner
 
 
 def main(args: list[str] | None = None) -> None:
@@ -30,8 +30,7 @@ def main(args: list[str] | None = None) -> None:
     node = Node("tendon_check", namespace=DEFAULT_NAMESPACE)
     executor = MultiThreadedExecutor(num_threads=2)
     executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
+    spinner = BackgroundSpinner(executor).start()
     client: RigClient | None = None
     code = 2
     try:
@@ -49,7 +48,7 @@ def main(args: list[str] | None = None) -> None:
     finally:
         if client is not None:
             client.destroy()
-        executor.shutdown()
+        spinner.stop()
         node.destroy_node()
         rclpy.try_shutdown()
     sys.exit(code)

@@ -25,6 +25,7 @@ from g2p.config import ConfigError
 from g2p_interfaces.action import Learn
 from g2p_learner.learner_node import LearnerNode
 from g2p_ros.contract import ServerWatch
+from g2p_ros.spinner import BackgroundSpinner
 
 
 def _parse(argv: list[str]) -> argparse.Namespace:
@@ -139,11 +140,12 @@ def main(args: list[str] | None = None) -> None:
         signal.signal(sig, lambda *_: stop.set())
     node = None
     code = 0
-    executor = MultiThreadedExecutor(num_threads=4)
+    spinner = None
     try:
         node = LearnerNode()
+        executor = MultiThreadedExecutor(num_threads=4)
         executor.add_node(node)
-        threading.Thread(target=executor.spin, daemon=True).start()
+        spinner = BackgroundSpinner(executor).start()
         if options.serve:
             stop.wait()
         else:
@@ -153,8 +155,9 @@ def main(args: list[str] | None = None) -> None:
         code = 2
     finally:
         if node is not None:
-            node.stop_goals(timeout_s=10.0)
-        executor.shutdown()
+            node.stop_goals(timeout_s=10.0)  # while the executor still spins: cancels reach the rig
+        if spinner is not None:
+            spinner.stop()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

@@ -22,6 +22,8 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.task import Future
 
+from g2p_ros.spinner import BackgroundSpinner
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -51,6 +53,7 @@ class NodeProcess:
             stderr=subprocess.STDOUT,
             env=os.environ.copy(),
         )
+        _started.append(self)
 
     def log(self) -> str:
         """What the process printed so far."""
@@ -71,6 +74,19 @@ class NodeProcess:
         return self.popen.returncode
 
 
+_started: list[NodeProcess] = []
+
+
+def stop_leftovers() -> None:
+    """Stop every NodeProcess a test left running (a failed assertion skipped its stop).
+
+    Run after each test (tests/conftest.py), so that a leftover rig cannot answer the next test's peers.
+    """
+    for proc in _started:
+        proc.stop()
+    _started.clear()
+
+
 class RosPeer:
     """A test-side rclpy node in its own Context, spun in a background thread.
 
@@ -85,10 +101,9 @@ class RosPeer:
         self.node = Node(name, namespace=namespace, context=self.context)
         # Single-threaded: rclpy's MultiThreadedExecutor can fall behind a 78 Hz topic on a loaded machine
         # (ros2/rclpy#1452); the test's own thread waits on futures, so one spinning thread is enough.
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self._thread.start()
+        executor = SingleThreadedExecutor(context=self.context)
+        executor.add_node(self.node)
+        self._spinner = BackgroundSpinner(executor).start()
 
     def wait(self, future: Future, timeout_s: float) -> Any:
         """The future's result; fails the test after `timeout_s` (s)."""
@@ -99,8 +114,7 @@ class RosPeer:
 
     def close(self) -> None:
         """Shut the node and its context down: stop spinning first, then destroy what the node holds."""
-        self.executor.shutdown()
-        self._thread.join(5.0)
+        self._spinner.stop()
         self.destroy_entities()
         self.node.destroy_node()
         rclpy.shutdown(context=self.context)
