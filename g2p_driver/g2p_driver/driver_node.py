@@ -34,7 +34,7 @@ from g2p.config import ConfigError, require, require_positive
 from g2p.hardware import HardwareError, HardwareLeg, HardwareLegConfig, load_rig_config, open_devices
 from g2p.hardware.fakes import FakeRig, FakeRigConfig, fake_devices
 from g2p_ros.contract import DEFAULT_NAMESPACE
-from g2p_ros.params import declare_config
+from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
 
 PACKAGE = "g2p_driver"
@@ -104,6 +104,9 @@ class DriverNode(LifecycleNode):
             f"must equal rig.baseline_activation ({self.rig_server_config.baseline_activation}), "
             f"got {self.leg_config.baseline_activation}",
         )
+        document = {**config_as_dict(self.config), "leg": config_as_dict(self.leg_config)}
+        document |= {"rig": config_as_dict(self.rig_server_config), "fake": config_as_dict(self.fake_config)}
+        self._config_pub = publish_config(self, document)
         self._log_handler = _RosLogHandler(self)
         logging.getLogger("g2p.hardware").addHandler(self._log_handler)
         self.leg: HardwareLeg | None = None

@@ -22,7 +22,7 @@ from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from std_msgs.msg import Header, String
+from std_msgs.msg import Header
 
 from g2p.attempt import AttemptOutcome
 from g2p.bags.runs import new_run_id
@@ -37,7 +37,7 @@ from g2p.search import SearchConfig
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_interfaces.msg import InverseMapWeights, LearnerEvent, NamedArray
 from g2p_ros.contract import DEFAULT_NAMESPACE
-from g2p_ros.params import config_json, declare_config
+from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_client import RigClient
 
 # Events, maps and the configuration must reach the recorder whole, even one that joins late: transient
@@ -51,12 +51,6 @@ EVENT_QOS = QoSProfile(
 MAP_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=100,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-CONFIG_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
@@ -136,8 +130,7 @@ class LearnerNode(Node):
 
         self._events = self.create_publisher(LearnerEvent, "~/events", EVENT_QOS)
         self._maps = self.create_publisher(InverseMapWeights, "~/inverse_map", MAP_QOS)
-        self._config_pub = self.create_publisher(String, "~/config", CONFIG_QOS)
-        self._config_pub.publish(String(data=config_json(self.config)))
+        self._config_pub = publish_config(self, config_as_dict(self.config))
 
         group = ReentrantCallbackGroup()
         self._servers = [
@@ -322,7 +315,7 @@ class LearnerNode(Node):
             "run_start",
             detail={
                 "goal": {"dataset_bag": goal.dataset_bag, "babbling_duration_s": goal.babbling_duration_s},
-                "search": json.loads(config_json(search)),
+                "search": config_as_dict(search),
             },
         )
         if goal.dataset_bag:

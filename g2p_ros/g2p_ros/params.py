@@ -16,6 +16,17 @@ from typing import Any, TypeVar
 
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+
+# The latched `~/config` topic: late subscribers (the recorder) still get the one message.
+CONFIG_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 
 T = TypeVar("T")
 
@@ -65,9 +76,15 @@ def config_as_dict(config: object) -> dict[str, Any]:
     return plain(config)  # type: ignore[no-any-return]
 
 
-def config_json(config: object) -> str:
-    """A configuration dataclass as a JSON document (sorted keys)."""
-    return json.dumps(config_as_dict(config), sort_keys=True)
+def publish_config(node: Node, document: dict[str, Any]) -> Publisher:
+    """Publish a node's resolved configuration, once, on its latched `~/config` topic (JSON, sorted keys).
+
+    Every G2P node does this, so that a recorded run holds the settings of every node that produced it.
+    Keep the publisher: destroying it ends the latching.
+    """
+    publisher = node.create_publisher(String, "~/config", CONFIG_QOS)
+    publisher.publish(String(data=json.dumps(document, sort_keys=True)))
+    return publisher
 
 
 def _default_of(f: dataclasses.Field[Any]) -> Any:

@@ -11,7 +11,6 @@ Parameters: see `g2p.bags.config.RecorderConfig` (bags_dir, run_id, include_rege
 from __future__ import annotations
 
 import importlib
-import json
 import signal
 import sys
 import threading
@@ -36,22 +35,13 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 from rosbags.interfaces import Qos
-from std_msgs.msg import String
 
 from g2p.bags import BagError, InterfaceError, InterfaceLibrary, TopicSpec, TypeRegistry, ament_share_dirs
 from g2p.bags.config import RecorderConfig
 from g2p.bags.qos import EndpointQos, make_qos, recording_qos
 from g2p.bags.writer import create_run_bag
 from g2p.config import ConfigError
-from g2p_ros.params import config_as_dict, declare_config
-
-# Latched configuration topic (`~/config`), the convention every G2P node follows.
-CONFIG_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+from g2p_ros.params import config_as_dict, declare_config, publish_config
 
 
 def message_class(msgtype: str) -> Any:
@@ -126,14 +116,8 @@ class RecorderNode(Node):
         self._early: list[tuple[Any, bytes]] = []
         self._recorded: dict[str, Subscription] = {}
         self._ignored: set[str] = set()
-        self._config_pub = self.create_publisher(String, "~/config", CONFIG_QOS)
-        self._config_pub.publish(
-            String(
-                data=json.dumps(
-                    {**config_as_dict(self.config), "run_id": self.run_id, "bag": str(self.bag.path)},
-                    sort_keys=True,
-                )
-            )
+        self._config_pub = publish_config(
+            self, {**config_as_dict(self.config), "run_id": self.run_id, "bag": str(self.bag.path)}
         )
         # Wall-clock timers: under use_sim_time, ROS-time timers would stall until /clock runs.
         steady = Clock(clock_type=ClockType.STEADY_TIME)

@@ -13,7 +13,7 @@ from rclpy.node import Node
 from g2p.config import ConfigError
 from g2p.sim import MujocoLeg, MujocoLegConfig
 from g2p_ros.contract import DEFAULT_NAMESPACE
-from g2p_ros.params import declare_config
+from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
 
 
@@ -54,6 +54,14 @@ class SimNode(Node):
             rig_config,
             sim_time=fast,
             publish_clock=True,
+        )
+        self._config_pub = publish_config(
+            self,
+            {
+                **config_as_dict(self.config),
+                "leg": config_as_dict(leg_config),
+                "rig": config_as_dict(rig_config),
+            },
         )
         self.rig.start()
         self.get_logger().info(

@@ -23,6 +23,7 @@ from lifecycle_msgs.msg import State, Transition, TransitionEvent
 from lifecycle_msgs.srv import ChangeState, GetState
 from rclpy.action import ActionClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from g2p.hardware import RigConfig
@@ -30,6 +31,7 @@ from g2p_interfaces.action import RunActivations
 from g2p_interfaces.msg import MotorActivation
 from g2p_ros import contract
 from g2p_ros.convert import recording_from_msg
+from g2p_ros.params import CONFIG_QOS
 from tests.nodes.rosproc import NodeProcess, RosPeer, wait_until
 
 BASELINE = 0.15
@@ -55,6 +57,10 @@ class LifecyclePeer(RosPeer):
             MotorActivation, contract.APPLIED_ACTIVATION, self._on_applied, DEEP_QOS
         )
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 10)
+        self.configs: list[dict[str, object]] = []
+        self.node.create_subscription(
+            String, "driver/config", lambda m: self.configs.append(json.loads(m.data)), CONFIG_QOS
+        )
         self.cmd = self.node.create_publisher(MotorActivation, contract.ACTIVATION_CMD, contract.COMMAND_QOS)
         self.action = ActionClient(self.node, RunActivations, contract.RUN_ACTIVATIONS)
         self.reset = self.node.create_client(Trigger, contract.RESET)
@@ -152,6 +158,10 @@ def test_lifecycle_serves_the_contract_and_leaves_outputs_safe(
 ) -> None:
     peer.wait_for_driver()
     assert peer.state() == State.PRIMARY_STATE_UNCONFIGURED
+    # The resolved configuration, latched on ~/config for the recorder.
+    wait_until(lambda: len(peer.configs) == 1, 10.0, "the driver's configuration")
+    assert peer.configs[0]["fake_devices"] is True
+    assert peer.configs[0]["rig"]["baseline_activation"] == BASELINE  # type: ignore[index]
     assert peer.transition(Transition.TRANSITION_CONFIGURE), driver.log()
     assert peer.state() == State.PRIMARY_STATE_INACTIVE
     assert is_off(outputs(state_dir))  # configure opens the devices, outputs stay off

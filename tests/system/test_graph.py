@@ -18,6 +18,7 @@ from rclpy.action import ActionClient
 from g2p.bags.dataset import load_run, load_training_data
 from g2p.inverse_map import InverseMap
 from g2p.learner import Learner, LearnerConfig
+from g2p.sim.config import DEFAULT_BELT_DRAG_N
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_interfaces.msg import MotorActivation
 from g2p_ros import contract
@@ -204,6 +205,10 @@ def test_make_run_equivalent_records_a_run_whose_map_can_be_rebuilt_from_the_bag
     run = load_run(bag)
     assert summary["attempt_count"] == len(run.attempts) >= 3
     assert (bag / "report" / "fig4a_reward.png").is_file()
+    # Every node's resolved configuration is in the bag.
+    assert run.configs["/leg/sim/config"]["time_mode"] == "fast"
+    assert run.configs["/leg/sim/config"]["leg"]["belt_drag_n"] == DEFAULT_BELT_DRAG_N
+    assert run.configs["/leg/recorder/config"]["run_id"] == "test-run"
     # Rebuild the learner's map from the bag alone, with the configuration recorded in it.
     config = run.configs["/leg/learner/config"]["learner"]
     assert config["seed"] == 0

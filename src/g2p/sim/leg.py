@@ -57,6 +57,7 @@ class MujocoLeg:
         cfg = self.config
         self._leg: LegModel = load_leg_model(cfg.resolved_model_path, cfg.carriage_height_m)
         self._model = self._leg.model
+        self._model.dof_frictionloss[self._leg.belt_dof] = cfg.belt_drag_n
         self._data = mujoco.MjData(self._model)
         # Views on the MjData buffers (they stay valid: MjData is never reallocated), to keep ticks cheap.
         self._qpos, self._qvel = self._data.qpos, self._data.qvel
