@@ -16,7 +16,6 @@ node runs on the physics-backed fake buses of `g2p.hardware.fakes` (no Raspberry
 from __future__ import annotations
 
 import logging
-import signal
 import sys
 import threading
 from dataclasses import dataclass
@@ -27,7 +26,6 @@ from ament_index_python.packages import PackageNotFoundError, get_package_share_
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
-from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Header
 
 from g2p.config import ConfigError, require, require_positive
@@ -36,6 +34,7 @@ from g2p.hardware.fakes import FakeRig, FakeRigConfig, fake_devices
 from g2p_ros.contract import DEFAULT_NAMESPACE
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
+from g2p_ros.signals import init_with_stop_event
 
 PACKAGE = "g2p_driver"
 
@@ -296,10 +295,7 @@ def main(args: list[str] | None = None) -> None:
     made safe (tick loop stopped, baseline, off) while the ROS context is still valid, so the loop and
     any running goal end cleanly before rclpy shuts down.
     """
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda signum, frame: stop.set())
+    stop = init_with_stop_event(args)
     node = None
     try:
         node = DriverNode()

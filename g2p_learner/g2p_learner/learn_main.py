@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import signal
 import sys
 import threading
 
@@ -18,13 +17,13 @@ import rclpy
 from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
-from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
 from g2p.config import ConfigError
 from g2p_interfaces.action import Learn
 from g2p_learner.learner_node import LearnerNode
 from g2p_ros.contract import ServerWatch
+from g2p_ros.signals import init_with_stop_event
 from g2p_ros.spinner import BackgroundSpinner
 
 
@@ -132,12 +131,7 @@ def main(args: list[str] | None = None) -> None:
     """Entry point of `ros2 run g2p_learner learn`."""
     argv = sys.argv if args is None else args
     options = _parse(argv)
-    # Signals are handled here, not by rclpy, so that a running goal is cancelled on the rig (motors to
-    # baseline) while the executor still spins, before the context goes down.
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
+    stop = init_with_stop_event(argv)  # a signal cancels the goal on the rig while the executor spins
     node = None
     code = 0
     spinner = None

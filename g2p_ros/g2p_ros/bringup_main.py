@@ -27,11 +27,11 @@ import rclpy
 import yaml
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix, get_package_share_directory
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
 from g2p.bags.runs import new_run_id
 from g2p_ros.graph import Graph, GraphError, NodeSpec, load_graph
+from g2p_ros.signals import init_with_stop_event
 
 STOP_TIMEOUT_S = 20.0
 START_TIMEOUT_S = 60.0
@@ -160,10 +160,7 @@ def main(args: list[str] | None = None) -> None:
     """Entry point of `ros2 run g2p_ros bringup`."""
     argv = sys.argv if args is None else args
     options = _parse(argv)
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
+    stop = init_with_stop_event(argv)
     code = 1
     try:
         run_id = options.run_id or new_run_id(datetime.now(timezone.utc), np.random.default_rng())

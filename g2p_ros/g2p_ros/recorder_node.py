@@ -11,13 +11,10 @@ Parameters: see `g2p.bags.config.RecorderConfig` (bags_dir, run_id, include_rege
 from __future__ import annotations
 
 import importlib
-import signal
 import sys
-import threading
 import time
 from collections.abc import Callable
 from datetime import datetime, timezone
-from types import FrameType
 from typing import Any
 
 import numpy as np
@@ -31,7 +28,6 @@ except ImportError:  # pragma: no cover - exercised on Jazzy
     from rclpy.executors import SingleThreadedExecutor as _FastExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 from rosbags.interfaces import Qos
@@ -42,6 +38,7 @@ from g2p.bags.qos import EndpointQos, make_qos, recording_qos
 from g2p.bags.writer import create_run_bag
 from g2p.config import ConfigError
 from g2p_ros.params import config_as_dict, declare_config, publish_config
+from g2p_ros.signals import init_with_stop_event
 
 
 def message_class(msgtype: str) -> Any:
@@ -219,14 +216,7 @@ def main(args: list[str] | None = None) -> None:
 
     SIGINT and SIGTERM only set a flag, so the bag is never closed in the middle of a write.
     """
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = threading.Event()
-
-    def request_stop(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGINT, request_stop)
-    signal.signal(signal.SIGTERM, request_stop)
+    stop = init_with_stop_event(args)
     node = None
     try:
         node = RecorderNode()

@@ -9,13 +9,11 @@ passed). Each topic is published with the QoS its recorded publishers offered (s
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from types import FrameType
 
 import rclpy
 from builtin_interfaces.msg import Time
@@ -23,7 +21,6 @@ from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 
 from g2p.bags import BagError, BagReader
@@ -31,6 +28,7 @@ from g2p.bags.replay import ReplayOptions, ReplayTopic, Timeline, parse_remap, p
 from g2p.config import ConfigError
 from g2p_ros import contract
 from g2p_ros.recorder_node import message_class, qos_profile
+from g2p_ros.signals import init_with_stop_event
 
 # A message due less than this ahead is published at once rather than slept for (s).
 _EARLY_S = 0.0005
@@ -206,14 +204,7 @@ def main(args: list[str] | None = None) -> None:
     argv = list(sys.argv if args is None else args)
     ours, ros = split_ros_args(argv[1:])
     bag, options = parse_arguments(ours)
-    rclpy.init(args=[argv[0], *ros], signal_handler_options=SignalHandlerOptions.NO)
-    stop = threading.Event()
-
-    def request_stop(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGINT, request_stop)
-    signal.signal(signal.SIGTERM, request_stop)
+    stop = init_with_stop_event([argv[0], *ros])
     node = None
     reader = None
     try:

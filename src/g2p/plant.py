@@ -127,6 +127,10 @@ class Recording:
         """The ticks [start, stop) as a new recording."""
         return Recording(**{f.name: getattr(self, f.name)[start:stop] for f in fields(self)})
 
+    def take(self, index: NDArray[np.intp]) -> Recording:
+        """The ticks at `index` (shape (M,), tick numbers in order) as a new recording."""
+        return Recording(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
+
     @property
     def belt_travel_mm(self) -> float:
         """Belt displacement from the end of the first tick to the end of the last (mm, + backward)."""

@@ -78,6 +78,57 @@ def tick_values(k: int) -> dict[str, Any]:
     }
 
 
+def rig_messages(messages: Messages, k: int, stamp: int) -> dict[str, Any]:
+    """The four rig messages of synthetic tick k, stamped `stamp` (ns), by role."""
+    v, h = tick_values(k), messages.header(stamp)
+    return {
+        "joint_states": messages.make(
+            "sensor_msgs/msg/JointState",
+            header=h,
+            name=["proximal", "distal"],
+            position=v["position_rad"],
+            velocity=v["velocity_rad_s"],
+            effort=np.zeros(0),
+        ),
+        "treadmill": messages.make(
+            "g2p_interfaces/msg/Treadmill",
+            header=h,
+            displacement_mm=v["belt_mm"],
+            velocity_mm_s=v["belt_velocity_mm_s"],
+        ),
+        "motor_power": messages.make(
+            "g2p_interfaces/msg/MotorPower",
+            header=h,
+            current_a=v["current_a"],
+            power_w=v["power_w"],
+            energy_j=v["energy_j"],
+        ),
+        "applied_activation": messages.make(
+            "g2p_interfaces/msg/MotorActivation", header=h, activation=v["activation"]
+        ),
+    }
+
+
+def learner_event(messages: Messages, stamp: int, run_id: str, kind: str, **fields: Any) -> Any:
+    """A LearnerEvent stamped `stamp` (ns); unset numbers are NaN, unset arrays empty, detail a dict."""
+    values: dict[str, Any] = dict(
+        phase="",
+        attempt=0,
+        features=np.zeros(0),
+        reward_mm=np.nan,
+        energy_j=np.nan,
+        tracking_mse_deg2=np.nan,
+        tracking_rmse_rad=np.nan,
+        best_reward_mm=np.nan,
+        sigma=np.nan,
+    )
+    values.update(fields)
+    values["detail"] = json.dumps(values.get("detail") or {})
+    return messages.make(
+        "g2p_interfaces/msg/LearnerEvent", header=messages.header(stamp), run_id=run_id, event=kind, **values
+    )
+
+
 def write_synthetic_run(
     path: Path, messages: Messages, skip_joint_state_of: int | None = 210
 ) -> SyntheticRun:
@@ -120,35 +171,8 @@ def write_synthetic_run(
 
     def tick(record: list[int] | None) -> int:
         nonlocal k
-        v = tick_values(k)
         stamp = T0_NS + k * TICK_NS
-        h = messages.header(stamp)
-        msgs = {
-            "joint_states": messages.make(
-                "sensor_msgs/msg/JointState",
-                header=h,
-                name=["proximal", "distal"],
-                position=v["position_rad"],
-                velocity=v["velocity_rad_s"],
-                effort=np.zeros(0),
-            ),
-            "treadmill": messages.make(
-                "g2p_interfaces/msg/Treadmill",
-                header=h,
-                displacement_mm=v["belt_mm"],
-                velocity_mm_s=v["belt_velocity_mm_s"],
-            ),
-            "motor_power": messages.make(
-                "g2p_interfaces/msg/MotorPower",
-                header=h,
-                current_a=v["current_a"],
-                power_w=v["power_w"],
-                energy_j=v["energy_j"],
-            ),
-            "applied_activation": messages.make(
-                "g2p_interfaces/msg/MotorActivation", header=h, activation=v["activation"]
-            ),
-        }
+        msgs = rig_messages(messages, k, stamp)
         for role, msg in msgs.items():
             if role == "joint_states" and k == skip_joint_state_of:
                 continue
@@ -166,25 +190,17 @@ def write_synthetic_run(
         detail: dict[str, Any] | None = None,
         **values: float,
     ) -> None:
-        fields = dict(
-            reward_mm=np.nan,
-            energy_j=np.nan,
-            tracking_mse_deg2=np.nan,
-            tracking_rmse_rad=np.nan,
-            best_reward_mm=np.nan,
-            sigma=np.nan,
-        )
-        fields.update(values)
-        msg = messages.make(
-            "g2p_interfaces/msg/LearnerEvent",
-            header=messages.header(stamp),
-            run_id="run-1",
-            event=kind,
+        features = np.linspace(0.15, 1.0, 10) if attempt else np.zeros(0)
+        msg = learner_event(
+            messages,
+            stamp,
+            "run-1",
+            kind,
             phase=phase,
             attempt=attempt,
-            features=np.linspace(0.15, 1.0, 10) if attempt else np.zeros(0),
-            detail=json.dumps(detail or {}),
-            **fields,
+            features=features,
+            detail=detail,
+            **values,
         )
         writer.write(events, stamp + 2000, messages.cdr(msg))
 
@@ -303,63 +319,9 @@ def write_plan(path: Path, messages: Messages, plan: TickPlan) -> None:
         for n, (kind, item) in enumerate(plan.items):
             if kind == "tick":
                 stamp, k = item
-                v, h = tick_values(k), messages.header(stamp)
-                for role, msg in (
-                    (
-                        "joint_states",
-                        messages.make(
-                            "sensor_msgs/msg/JointState",
-                            header=h,
-                            name=["proximal", "distal"],
-                            position=v["position_rad"],
-                            velocity=v["velocity_rad_s"],
-                            effort=np.zeros(0),
-                        ),
-                    ),
-                    (
-                        "treadmill",
-                        messages.make(
-                            "g2p_interfaces/msg/Treadmill",
-                            header=h,
-                            displacement_mm=v["belt_mm"],
-                            velocity_mm_s=v["belt_velocity_mm_s"],
-                        ),
-                    ),
-                    (
-                        "motor_power",
-                        messages.make(
-                            "g2p_interfaces/msg/MotorPower",
-                            header=h,
-                            current_a=v["current_a"],
-                            power_w=v["power_w"],
-                            energy_j=v["energy_j"],
-                        ),
-                    ),
-                    (
-                        "applied_activation",
-                        messages.make(
-                            "g2p_interfaces/msg/MotorActivation", header=h, activation=v["activation"]
-                        ),
-                    ),
-                ):
+                for role, msg in rig_messages(messages, k, stamp).items():
                     writer.write(handles[role], T0_NS + n, messages.cdr(msg))
             else:
                 stamp, name, fields = item
-                detail = fields.pop("detail", {})
-                msg = messages.make(
-                    "g2p_interfaces/msg/LearnerEvent",
-                    header=messages.header(stamp),
-                    run_id="plan",
-                    event=name,
-                    phase=fields.pop("phase", ""),
-                    attempt=fields.pop("attempt", 0),
-                    features=np.zeros(0),
-                    reward_mm=np.nan,
-                    energy_j=np.nan,
-                    tracking_mse_deg2=np.nan,
-                    tracking_rmse_rad=np.nan,
-                    best_reward_mm=np.nan,
-                    sigma=np.nan,
-                    detail=json.dumps(detail),
-                )
+                msg = learner_event(messages, stamp, "plan", name, **fields)
                 writer.write(events, T0_NS + n, messages.cdr(msg))

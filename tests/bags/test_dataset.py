@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -20,18 +21,8 @@ def expected(ticks: list[int]) -> Recording:
 
 def assert_same(got: Recording, want: Recording) -> None:
     assert len(got) == len(want)
-    for name in (
-        "t_s",
-        "activation",
-        "position_rad",
-        "velocity_rad_s",
-        "belt_mm",
-        "belt_velocity_mm_s",
-        "current_a",
-        "power_w",
-        "energy_j",
-    ):
-        np.testing.assert_array_equal(getattr(got, name), getattr(want, name), err_msg=name)
+    for f in fields(Recording):
+        np.testing.assert_array_equal(getattr(got, f.name), getattr(want, f.name), err_msg=f.name)
 
 
 @pytest.fixture
@@ -97,24 +88,7 @@ def test_other_namespace_has_no_rig_ticks(run: SyntheticRun) -> None:
 def planned(played: list[tuple[int, int]]) -> Recording:
     """The expected recording of scripted ticks: values of tick_values(k), stamps as scripted."""
     want = expected([k for _, k in played])
-    return Recording(
-        **{
-            **{
-                n: getattr(want, n)
-                for n in (
-                    "activation",
-                    "position_rad",
-                    "velocity_rad_s",
-                    "belt_mm",
-                    "belt_velocity_mm_s",
-                    "current_a",
-                    "power_w",
-                    "energy_j",
-                )
-            },
-            "t_s": np.array([stamp * 1e-9 for stamp, _ in played]),
-        }
-    )
+    return replace(want, t_s=np.array([stamp * 1e-9 for stamp, _ in played]))
 
 
 def test_fast_simulation_timeline(tmp_path: Path, messages: Messages) -> None:

@@ -93,7 +93,7 @@ class Ticks:
             return Recording.empty()
         if _contiguous(index):
             return self.recording.slice(int(index[0]), int(index[-1]) + 1)
-        return _take(self.recording, index)
+        return self.recording.take(index)
 
 
 class TickAssembler:
@@ -165,22 +165,3 @@ def _row(group: Mapping[str, Any]) -> dict[str, Any]:
 
 def _contiguous(index: NDArray[np.intp]) -> bool:
     return bool(index[-1] - index[0] + 1 == len(index))
-
-
-def _take(recording: Recording, index: NDArray[np.intp]) -> Recording:
-    return Recording(
-        **{
-            name: getattr(recording, name)[index]
-            for name in (
-                "t_s",
-                "activation",
-                "position_rad",
-                "velocity_rad_s",
-                "belt_mm",
-                "belt_velocity_mm_s",
-                "current_a",
-                "power_w",
-                "energy_j",
-            )
-        }
-    )
