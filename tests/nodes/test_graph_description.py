@@ -1,0 +1,38 @@
+"""The installed graph description (g2p_ros/config/graph.yaml): every rig resolves, treadmill or air."""
+
+from __future__ import annotations
+
+import pytest
+
+from g2p.hardware.fakes import FakeRigConfig
+from g2p.sim import AIR_CARRIAGE_HEIGHT_M, TREADMILL_CARRIAGE_HEIGHT_M, MujocoLegConfig
+from g2p_ros.graph import load_graph
+from tests.nodes.rosproc import ROOT
+
+GRAPH = ROOT / "install" / "g2p_ros" / "share" / "g2p_ros" / "config" / "graph.yaml"
+SUBSTITUTIONS = {"run_id": "test-run", "bags_dir": "bags"}
+
+
+def carriage_height_m(rig: str) -> float:
+    """The carriage height the rig of that name starts with (its parameters, else the config default)."""
+    spec = load_graph(GRAPH, rig, SUBSTITUTIONS).nodes[0]
+    if spec.parameters.get("fake_devices"):
+        return float(spec.parameters.get("fake.carriage_height_m", FakeRigConfig().carriage_height_m))
+    return float(spec.parameters.get("leg.carriage_height_m", MujocoLegConfig().carriage_height_m))
+
+
+@pytest.mark.parametrize("rig", ["sim", "sim_realtime", "hardware_fake"])
+def test_learning_rigs_stand_the_foot_on_the_treadmill(rig: str) -> None:
+    assert carriage_height_m(rig) == TREADMILL_CARRIAGE_HEIGHT_M
+
+
+def test_air_rig_hangs_the_foot_in_the_air() -> None:
+    assert carriage_height_m("sim_air") == AIR_CARRIAGE_HEIGHT_M
+
+
+def test_every_rig_ends_with_the_learner_as_main_node() -> None:
+    for rig in ("sim", "sim_realtime", "sim_air", "hardware", "hardware_fake"):
+        graph = load_graph(GRAPH, rig, SUBSTITUTIONS)
+        assert graph.namespace == "/leg"
+        assert [n.name for n in graph.nodes[1:]] == ["recorder", "learner"]
+        assert graph.main.name == "learner"
