@@ -124,7 +124,7 @@ def rig_throughput(ticks: int, cap: float) -> dict[str, float]:
     executor.add_node(node)
     threading.Thread(target=executor.spin, daemon=True).start()
     client = ActionClient(node, RunActivations, contract.RUN_ACTIVATIONS)
-    watch = contract.ServerWatch(client.server_is_ready, lambda t: client.wait_for_server(timeout_sec=t))
+    watch = contract.ServerWatch("run_activations", client.server_is_ready)
     assert watch.wait_until_ready(60.0)
     time.sleep(2.0)  # let the subscriber match the rig's publishers
     activations = babbling_activations(np.random.default_rng(0), n_samples=ticks)

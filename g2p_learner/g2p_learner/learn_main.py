@@ -22,9 +22,9 @@ from rclpy.utilities import remove_ros_args
 from g2p.config import ConfigError
 from g2p_interfaces.action import Learn
 from g2p_learner.learner_node import LearnerNode
-from g2p_ros.contract import ServerWatch
+from g2p_ros.contract import ServerWatch, wait_all
 from g2p_ros.signals import init_with_stop_event
-from g2p_ros.spinner import BackgroundSpinner
+from g2p_ros.spinner import BackgroundSpinner, wait_for_future
 
 
 def _parse(argv: list[str]) -> argparse.Namespace:
@@ -81,16 +81,6 @@ def _summary(result: Learn.Result, status_ok: bool, threshold_mm: float) -> str:
     return "\n".join(lines)
 
 
-def _wait(future: object, stop: threading.Event) -> bool:
-    """Wait for an rclpy future; False when `stop` was set first."""
-    done = threading.Event()
-    future.add_done_callback(lambda _: done.set())  # type: ignore[attr-defined]
-    while not done.wait(0.1):
-        if stop.is_set():
-            return False
-    return True
-
-
 def run_learning(node: LearnerNode, dataset_bag: str, stop: threading.Event) -> int:
     """Send one learn goal to the node's own action server and report; returns the exit code.
 
@@ -98,28 +88,34 @@ def run_learning(node: LearnerNode, dataset_bag: str, stop: threading.Event) -> 
     """
     client = ActionClient(node, Learn, "learn")
     try:
+        # The learner's own server, the rig and the recorder are discovered and settle together.
+        missing = wait_all(
+            [ServerWatch("learn", client.server_is_ready), *node.watches], node.config.rig_timeout_s
+        )
+        if missing:
+            print(
+                f"learn: not on the graph after {node.config.rig_timeout_s:g} s: {', '.join(missing)}",
+                file=sys.stderr,
+            )
+            return 1
         return _run_goal(client, dataset_bag, stop, node.config.search.threshold_mm)
     finally:
         client.destroy()
 
 
 def _run_goal(client: ActionClient, dataset_bag: str, stop: threading.Event, threshold_mm: float) -> int:
-    watch = ServerWatch(client.server_is_ready, lambda t: client.wait_for_server(timeout_sec=t))
-    if not watch.wait_until_ready(30.0):
-        print("learn: the learner's action server did not come up", file=sys.stderr)
-        return 1
     send = client.send_goal_async(Learn.Goal(dataset_bag=dataset_bag), feedback_callback=_Progress())
-    if not _wait(send, stop):
+    if not wait_for_future(send, math.inf, stop):
         return 130
     handle = send.result()
     if handle is None or not handle.accepted:
         print("learn: goal rejected (see the log above for the reason)", file=sys.stderr)
         return 1
     result_future = handle.get_result_async()
-    if not _wait(result_future, stop):
+    if not wait_for_future(result_future, math.inf, stop):
         print("\nlearn: stopping: cancelling the run (the rig drops to baseline)", file=sys.stderr)
-        _wait(handle.cancel_goal_async(), threading.Event())
-        _wait(result_future, threading.Event())
+        wait_for_future(handle.cancel_goal_async(), math.inf)
+        wait_for_future(result_future, math.inf)
         return 130
     response = result_future.result()
     ok = response.status == GoalStatus.STATUS_SUCCEEDED

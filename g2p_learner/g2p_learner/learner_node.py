@@ -36,7 +36,7 @@ from g2p.rig import ProgressCallback, RigCancelled, RigError
 from g2p.search import SearchConfig
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_interfaces.msg import InverseMapWeights, LearnerEvent, NamedArray
-from g2p_ros.contract import DEFAULT_NAMESPACE
+from g2p_ros.contract import DEFAULT_NAMESPACE, RIG_SAMPLE_TOPICS, ServerWatch, wait_all
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_client import RigClient
 
@@ -65,7 +65,9 @@ class LearnerNodeConfig:
         bag_path: where a recorder records this node's runs, reported in the learn result ("" = none).
         air_feature_low: lowest feature of the free-movement (track) trajectories (paper: 0.2).
         air_feature_high: highest feature of the free-movement (track) trajectories (paper: 0.8).
-        rig_timeout_s: how long to wait for the rig's action and service to appear (s).
+        rig_timeout_s: how long a goal waits for the rig's action and service (and the recorder) (s).
+        recorder_node: name of the recorder node in this namespace: every goal first waits until it
+            subscribes to the rig's sample topics, so the recorded run is whole ("" = do not wait).
         learner: babbling, preprocessing and inverse-map settings.
         cycle: limit-cycle shape, timing and treadmill feature bounds (also the search's bounds).
         search: reward search (threshold, attempt budgets, sigma schedule).
@@ -76,6 +78,7 @@ class LearnerNodeConfig:
     air_feature_low: float = AIR_FEATURE_BOUNDS[0]
     air_feature_high: float = AIR_FEATURE_BOUNDS[1]
     rig_timeout_s: float = 30.0
+    recorder_node: str = ""
     learner: LearnerConfig = field(default_factory=LearnerConfig)
     cycle: LimitCycleConfig = field(default_factory=LimitCycleConfig)
     search: SearchConfig = field(default_factory=SearchConfig)
@@ -122,6 +125,10 @@ class LearnerNode(Node):
             search=declare_config(self, SearchConfig, "search.", exclude=search_fields),
         )
         self.rig = RigClient(self, self.config.rig_timeout_s)
+        self.watches = list(self.rig.watches)
+        if self.config.recorder_node:
+            name = f"{self.get_namespace().rstrip('/')}/{self.config.recorder_node}"
+            self.watches.append(ServerWatch(f"recorder {name}", self._recorder_listening, settle_s=0.0))
         self.learner = Learner(self.config.learner)
         self.run_id = self.config.run_id or new_run_id(datetime.now(timezone.utc), np.random.default_rng())
         self._busy = False
@@ -168,6 +175,16 @@ class LearnerNode(Node):
             server.destroy()
         self.rig.destroy()
         super().destroy_node()
+
+    def _recorder_listening(self) -> bool:
+        """Whether the recorder subscribes to every rig sample topic (as this node's remappings name them)."""
+        return all(
+            any(
+                s.node_name == self.config.recorder_node and s.node_namespace == self.get_namespace()
+                for s in self.get_subscriptions_info_by_topic(topic)
+            )
+            for topic in RIG_SAMPLE_TOPICS
+        )
 
     # Goal validation ---------------------------------------------------------------------------------
 
@@ -227,6 +244,11 @@ class LearnerNode(Node):
         def run(goal_handle: ServerGoalHandle) -> object:
             self._cancel.clear()
             try:
+                missing = wait_all(self.watches, self.config.rig_timeout_s)
+                if missing:
+                    raise RigError(
+                        f"not on the graph after {self.config.rig_timeout_s:g} s: {', '.join(missing)}"
+                    )
                 return execute(goal_handle)
             except RigCancelled as err:
                 goal_handle.canceled()

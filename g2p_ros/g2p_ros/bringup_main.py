@@ -1,8 +1,8 @@
 """`ros2 run g2p_ros bringup`: start the graph described in config/graph.yaml, one process per node.
 
-The rig starts first, then each node once the previous one is on the graph; the recorder must have
-subscribed to the rig's topics before the learner starts, so nothing goes unrecorded. When the main node
-(the learner) exits, or on Ctrl-C / SIGTERM, the processes are stopped in an order that loses nothing:
+All nodes start at once; the learner starts its run only once the rig serves it and the recorder has
+subscribed to the rig's topics (its `recorder_node` parameter), so nothing goes unrecorded. When the main
+node (the learner) exits, or on Ctrl-C / SIGTERM, the processes are stopped in an order that loses nothing:
 learner first (it cancels its goal, the rig drops to baseline), then the rig, then the recorder, which
 finalizes the bag. Then the run's report is written beside the bag.
 
@@ -26,7 +26,6 @@ import numpy as np
 import rclpy
 import yaml
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix, get_package_share_directory
-from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 
 from g2p.bags.runs import new_run_id
@@ -111,48 +110,34 @@ class Process:
         return self.popen.wait()
 
 
-def _wait_ready(probe: Node, proc: Process, rig_topic: str, stop: threading.Event) -> bool:
-    """Wait until the node is on the graph (and, for a recorder, subscribed to the rig's topic)."""
-    deadline = time.monotonic() + START_TIMEOUT_S
-    name, ns = proc.spec.name, proc.spec.namespace
-    while time.monotonic() < deadline and not stop.is_set():
-        if not proc.running():
-            return False
-        if (name, ns) in probe.get_node_names_and_namespaces():
-            if proc.spec.executable != "record":
-                return True
-            subs = probe.get_subscriptions_info_by_topic(rig_topic)
-            if any(s.node_name == name for s in subs):
-                return True
-        time.sleep(0.1)
-    return False
-
-
 def run(graph: Graph, log_dir: Path, stop: threading.Event) -> int:
-    """Start the graph, wait for the main node to exit (or for `stop`), stop everything; main's exit code."""
-    probe = Node("bringup", namespace=graph.namespace)
+    """Start the graph, wait for the main node to exit (or for `stop`), stop everything; main's exit code.
+
+    The nodes start together; the learner waits for the rig and the recorder itself (its `recorder_node`
+    parameter). When another node exits first, the run is stopped: nothing runs unrecorded or riderless.
+    """
     procs: list[Process] = []
-    rig_topic = f"{graph.namespace.rstrip('/')}/joint_states"
     code = 1
     with tempfile.TemporaryDirectory(prefix="g2p-bringup-") as params_dir:
         try:
-            for spec in graph.nodes:
-                proc = Process(spec, Path(params_dir), log_dir)
-                procs.append(proc)
-                if spec is graph.main:
-                    break
-                if not _wait_ready(probe, proc, rig_topic, stop):
-                    print(f"bringup: {spec.name} did not come up; see {proc.log_path}", file=sys.stderr)
-                    return 1
-            main = procs[-1]
+            procs = [Process(spec, Path(params_dir), log_dir) for spec in graph.nodes]
+            main = next(p for p in procs if p.spec is graph.main)
             while main.running() and not stop.is_set():
+                ended = [p for p in procs if p is not main and not p.running()]
+                if ended:
+                    print(
+                        f"bringup: {ended[0].spec.name} exited (code {ended[0].popen.returncode}); "
+                        f"stopping the run; see {ended[0].log_path}",
+                        file=sys.stderr,
+                    )
+                    main.stop()
+                    return 1
                 time.sleep(0.1)
             code = main.stop()  # on stop: SIGINT lets the learner cancel its goal (rig to baseline)
         finally:
             # Rig before recorder, so the recorder sees everything the rig published.
             for proc in procs:
                 proc.stop()
-            probe.destroy_node()
     return code
 
 

@@ -1,7 +1,7 @@
 """Names and QoS of the rig contract, identical for the simulator and the hardware driver."""
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -14,6 +14,8 @@ ACTIVATION_CMD = "activation_cmd"
 RUN_ACTIVATIONS = "run_activations"
 RESET = "reset"
 DEFAULT_NAMESPACE = "/leg"
+# What the rig publishes every tick.
+RIG_SAMPLE_TOPICS = (JOINT_STATES, TREADMILL, MOTOR_POWER, APPLIED_ACTIVATION)
 
 # Rig samples: reliable, so a recorder loses nothing. A reliable writer drops samples its readers have not
 # acknowledged yet once its history is full, and acknowledgements come at heartbeat pace: 10,000 samples
@@ -46,27 +48,45 @@ DISCOVERY_SETTLE_S = 1.0
 
 
 class ServerWatch:
-    """Waits until a server is available and this client has known it for DISCOVERY_SETTLE_S.
+    """Whether a server can be called: it is available and this client has known it for `settle_s`.
 
     Args:
+        name: what is watched, for messages (e.g. the server's name).
         is_ready: whether the server is available now (e.g. ActionClient.server_is_ready).
-        wait: block until the server is available or a timeout (s) passes; True if available.
+        settle_s: how long the server must have been known before it is called (s).
     """
 
-    def __init__(self, is_ready: Callable[[], bool], wait: Callable[[float], bool]) -> None:
+    def __init__(self, name: str, is_ready: Callable[[], bool], settle_s: float = DISCOVERY_SETTLE_S) -> None:
+        self.name = name
         self._is_ready = is_ready
-        self._wait = wait
+        self._settle_s = settle_s
         self._known_since: float | None = None
 
-    def wait_until_ready(self, timeout_s: float) -> bool:
-        """True once the server can be called; False when it did not appear within `timeout_s` (s)."""
+    def poll(self) -> bool:
+        """True once the server can be called; notes when it was first seen."""
         if not self._is_ready():
             self._known_since = None  # gone (or never seen): a restarted server is a new one
-            if not self._wait(timeout_s):
-                return False
+            return False
+        now = time.monotonic()
         if self._known_since is None:
-            self._known_since = time.monotonic()
-        delay = self._known_since + DISCOVERY_SETTLE_S - time.monotonic()
-        if delay > 0:
-            time.sleep(delay)
-        return True
+            self._known_since = now
+        return now - self._known_since >= self._settle_s
+
+    def wait_until_ready(self, timeout_s: float) -> bool:
+        """True once the server can be called; False when it was not within `timeout_s` (s)."""
+        return not wait_all([self], timeout_s)
+
+
+def wait_all(watches: Iterable[ServerWatch], timeout_s: float, poll_s: float = 0.02) -> list[str]:
+    """Wait for every watch at once, so discoveries and settling overlap.
+
+    Returns:
+        the names of the watches still not ready after `timeout_s` (s); empty when all are.
+    """
+    pending = list(watches)
+    deadline = time.monotonic() + timeout_s
+    while True:
+        pending = [w for w in pending if not w.poll()]
+        if not pending or time.monotonic() > deadline:
+            return [w.name for w in pending]
+        time.sleep(poll_s)

@@ -9,7 +9,6 @@ MultiThreadedExecutor); the executor completes the futures in its other threads.
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable
 
 import numpy as np
@@ -25,6 +24,7 @@ from g2p.safety import check_activation_sequence
 from g2p_interfaces.action import RunActivations
 from g2p_ros import contract
 from g2p_ros.convert import recording_from_msg
+from g2p_ros.spinner import wait_for_future
 
 
 class RigClient:
@@ -42,11 +42,14 @@ class RigClient:
         self._action = ActionClient(node, RunActivations, contract.RUN_ACTIVATIONS, callback_group=group)
         self._reset = node.create_client(Trigger, contract.RESET, callback_group=group)
         self._action_watch = contract.ServerWatch(
-            self._action.server_is_ready, lambda t: self._action.wait_for_server(timeout_sec=t)
+            node.resolve_topic_name(contract.RUN_ACTIVATIONS), self._action.server_is_ready
         )
-        self._reset_watch = contract.ServerWatch(
-            self._reset.service_is_ready, lambda t: self._reset.wait_for_service(timeout_sec=t)
-        )
+        self._reset_watch = contract.ServerWatch(self._reset.srv_name, self._reset.service_is_ready)
+
+    @property
+    def watches(self) -> tuple[contract.ServerWatch, contract.ServerWatch]:
+        """The rig's action and service, for waiting on them together with other servers."""
+        return self._action_watch, self._reset_watch
 
     def destroy(self) -> None:
         """Destroy the clients."""
@@ -98,15 +101,11 @@ class RigClient:
         result_future = handle.get_result_async()
         # Worst case the rig plays in real time; add a margin for slow machines.
         timeout_s = 60.0 + 3.0 * len(seq) / NOMINAL_TICK_HZ
-        deadline = time.monotonic() + timeout_s
-        done = threading.Event()
-        result_future.add_done_callback(lambda _: done.set())
-        while not done.wait(0.05):
+        if not wait_for_future(result_future, timeout_s, cancel):
             if cancel is not None and cancel.is_set():
                 _wait(handle.cancel_goal_async(), 10.0, "cancel")
                 raise RigCancelled("sequence cancelled")
-            if time.monotonic() > deadline:
-                raise RigError(f"run_activations did not finish within {timeout_s:.0f} s")
+            raise RigError(f"run_activations did not finish within {timeout_s:.0f} s")
         response = result_future.result()
         if response is None:
             raise RigError("run_activations returned no result")
@@ -117,9 +116,7 @@ class RigClient:
 
 
 def _wait(future: Future, timeout_s: float, what: str) -> object:
-    done = threading.Event()
-    future.add_done_callback(lambda _: done.set())
-    if not done.wait(timeout_s):
+    if not wait_for_future(future, timeout_s):
         raise RigError(f"no answer to {what} within {timeout_s} s")
     if future.exception() is not None:
         raise RigError(f"{what} failed: {future.exception()}")

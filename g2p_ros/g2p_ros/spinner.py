@@ -1,12 +1,30 @@
-"""Spin an executor in a background thread, and stop it before anything it uses is destroyed."""
+"""Executors spun in a background thread: stopped before what they use is destroyed; futures awaited."""
 
 from __future__ import annotations
 
 import threading
+import time
 
 from rclpy.executors import Executor
+from rclpy.task import Future
 
 STOP_TIMEOUT_S = 5.0
+FUTURE_POLL_S = 0.002
+
+
+def wait_for_future(future: Future, timeout_s: float, stop: threading.Event | None = None) -> bool:
+    """Block until `future` is done, from a thread the executor does not use; False on timeout or `stop`.
+
+    Polls `future.done()` instead of waiting on a done callback: rclpy runs done callbacks as executor
+    tasks, and on a busy 2-core machine those were measured arriving up to a second after the response
+    (docs/RESULTS.md, "Through the ROS graph").
+    """
+    deadline = time.monotonic() + timeout_s
+    while not future.done():
+        if (stop is not None and stop.is_set()) or time.monotonic() > deadline:
+            return False
+        time.sleep(FUTURE_POLL_S)
+    return True
 
 
 class BackgroundSpinner:

@@ -10,7 +10,6 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
-import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -22,7 +21,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.task import Future
 
-from g2p_ros.spinner import BackgroundSpinner
+from g2p_ros.spinner import BackgroundSpinner, wait_for_future
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -107,9 +106,7 @@ class RosPeer:
 
     def wait(self, future: Future, timeout_s: float) -> Any:
         """The future's result; fails the test after `timeout_s` (s)."""
-        done = threading.Event()
-        future.add_done_callback(lambda _: done.set())
-        assert done.wait(timeout_s), f"no result within {timeout_s} s"
+        assert wait_for_future(future, timeout_s), f"no result within {timeout_s} s"
         return future.result()
 
     def close(self) -> None:

@@ -160,6 +160,21 @@ def test_the_learner_drives_a_rig_in_another_namespace_by_remapping_only(tmp_pat
         assert codes == [0, 0], learner.log() + sim.log()
 
 
+def test_a_goal_waits_for_the_recorder_and_names_it_when_it_never_comes(tmp_path: Path) -> None:
+    sim = start_sim(tmp_path)
+    learner = start_learner(tmp_path, "-p", "recorder_node:=no_such_recorder", "-p", "rig_timeout_s:=3.0")
+    client = LearnerClient()
+    try:
+        done = client.run(client.babble, Babble.Goal(duration_s=10.0))
+        assert done.status == GoalStatus.STATUS_ABORTED
+        assert "recorder /leg/no_such_recorder" in done.result.message
+        assert client.applied == []  # nothing was played unrecorded
+    finally:
+        client.close()
+        codes = [proc.stop() for proc in (learner, sim)]  # both stopped before either is judged
+        assert codes == [0, 0], learner.log() + sim.log()
+
+
 def test_the_learner_survives_the_rig_restarting_between_goals(tmp_path: Path) -> None:
     sim, learner = start_sim(tmp_path), start_learner(tmp_path)
     client = LearnerClient()
