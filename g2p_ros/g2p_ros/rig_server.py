@@ -26,6 +26,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
+from g2p.config import require
 from g2p.plant import Plant, Recording, TickSample
 from g2p.safety import ActivationGate, InvalidActivation, check_activation_sequence
 from g2p_interfaces.action import RunActivations
@@ -57,6 +58,9 @@ class RigServerConfig:
         log_period_s: minimum wall time between two warnings about rejected or ignored commands (s).
         fast_max_real_time_factor: in fast simulation (on-demand pacing), the most simulated seconds per
             wall second (0 = unlimited), so that subscribers such as the recorder keep up.
+        clock_period_ticks: ticks between /clock messages (when the rig publishes /clock); the last tick
+            before the rig idles and every reset are always published, so the clock is never behind a
+            finished sequence. Every /clock message costs each use_sim_time node an executor callback.
     """
 
     watchdog_ticks: int = 3
@@ -64,7 +68,13 @@ class RigServerConfig:
     feedback_period_s: float = 0.2
     diagnostics_period_ticks: int = 78
     log_period_s: float = 1.0
-    fast_max_real_time_factor: float = 30.0
+    fast_max_real_time_factor: float = 60.0
+    clock_period_ticks: int = 1
+
+    def __post_init__(self) -> None:
+        require(
+            self.clock_period_ticks >= 1, "clock_period_ticks", f"must be >= 1, got {self.clock_period_ticks}"
+        )
 
 
 @dataclass
@@ -140,7 +150,8 @@ class RigServer:
         self._pub_clock = (
             node.create_publisher(Clock, "/clock", contract.CLOCK_QOS) if publish_clock else None
         )
-        self._pub_diag = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        # Depth 100 (100 s of rig time): a recorder lagging a fast simulation by a few seconds loses none.
+        self._pub_diag = node.create_publisher(DiagnosticArray, "/diagnostics", 100)
         group = ReentrantCallbackGroup()
         # Commands in arrival order: their own mutually exclusive group.
         self._sub_cmd = node.create_subscription(
@@ -312,6 +323,7 @@ class RigServer:
                     return
                 reset, self._reset = self._reset, None
                 job, activation = (None, None) if reset is not None else self._next_activation()
+                idle_next = self._idle_after(job)
             try:
                 if reset is not None:
                     self._do_reset(reset)
@@ -322,7 +334,7 @@ class RigServer:
                 continue
             self._pace(sample.t_s)
             try:
-                self._publish(sample)
+                self._publish(sample, clock=idle_next or self._ticks % self._config.clock_period_ticks == 0)
             except Exception as err:  # the context went down under the loop: the owner makes the plant safe
                 if not self._node.context.ok():
                     return
@@ -345,6 +357,14 @@ class RigServer:
         if self._lockstep:
             return None, self._lockstep.popleft()
         return None, self._gate.next_activation()
+
+    def _idle_after(self, job: _Job | None) -> bool:
+        """Whether the loop idles after the coming tick (lock held): its /clock must then go out."""
+        if self._pacing is not Pacing.ON_DEMAND:
+            return False
+        if job is not None:
+            return len(job.samples) + 1 == len(job.activations)
+        return not self._lockstep
 
     def _advance(self, job: _Job, sample: TickSample) -> None:
         job.samples.append(sample)
@@ -397,10 +417,10 @@ class RigServer:
     def _stamp(self, t_s: float) -> float:
         return t_s + self._stamp_offset_s
 
-    def _publish(self, sample: TickSample) -> None:
+    def _publish(self, sample: TickSample, clock: bool = True) -> None:
         stamp = time_from_seconds(self._stamp(sample.t_s))
         joints, treadmill, power, applied = tick_messages(sample, stamp)
-        if self._pub_clock is not None:
+        if self._pub_clock is not None and clock:
             self._pub_clock.publish(Clock(clock=stamp))
         self._pub_joints.publish(joints)
         self._pub_treadmill.publish(treadmill)

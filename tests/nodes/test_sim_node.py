@@ -14,6 +14,7 @@ from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.action import ActionClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
@@ -166,6 +167,36 @@ def test_run_activations_gives_feedback_and_the_samples_the_topics_carried(
     js = joints[divmod(first, 1_000_000_000)]
     assert list(js.name) == ["proximal", "distal"]
     np.testing.assert_array_equal(js.position, rec.position_rad[0])
+
+
+def test_fast_mode_publishes_clock_every_k_ticks_and_on_the_last_tick(log_dir: Path) -> None:
+    # Paced at 5x so that the best-effort /clock reaches the peer whole.
+    sim = start_sim(
+        log_dir, "time_mode:=fast", "rig.clock_period_ticks:=8", "rig.fast_max_real_time_factor:=5.0"
+    )
+    peer = RigPeer()
+    clocks: list[int] = []  # ns
+    peer.node.create_subscription(
+        Clock,
+        "/clock",
+        lambda m: clocks.append(m.clock.sec * 1_000_000_000 + m.clock.nanosec),
+        QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT),
+    )
+    try:
+        peer.wait_for_rig()
+        time.sleep(contract.DISCOVERY_SETTLE_S)
+        before = len(clocks)
+        handle = peer.play(np.full((203, 3), 0.3))
+        result = peer.wait(handle.get_result_async(), 60.0).result
+        ticks = np.asarray(result.samples.stamp_ns)
+        wait_until(lambda: clocks and clocks[-1] == ticks[-1], 10.0, "the /clock of the last tick")
+        during = np.array(clocks[before:])
+        # Every 8th tick (26 of 203, wherever the count starts) and the last: one /clock per 8 ticks.
+        assert 26 <= len(during) <= 27
+        assert np.isin(during, ticks).all()  # each /clock is a tick's stamp
+    finally:
+        peer.close()
+        assert sim.stop() == 0, sim.log()
 
 
 def test_fast_mode_is_deterministic_for_a_seed(log_dir: Path) -> None:
