@@ -1,6 +1,7 @@
 """Speed of the ROS graph in fast simulation, against the same work in-process.
 
-    scripts/with-env python benchmarks/bench_graph.py [--ticks 23400] [--skip-full-run]
+    scripts/with-env python benchmarks/bench_graph.py [--ticks 23400] [--caps 60.0,0.0] [--repeats 3]
+        [--skip-full-run]
 
 1. Rig throughput: the installed `sim` in fast mode plays a babbling sequence through `run_activations`
    while one subscriber (another process) takes every message of every rig topic and /clock; reports
@@ -8,7 +9,7 @@
    process's CPU time, for the default real-time-factor cap and without a cap.
 2. The main job: the full G2P run through the graph (sim, recorder, learner as `bringup` starts them)
    against its simulated rig time, the learner's CPU time and peak memory, and the same run in-process
-   (g2p.experiments.run_treadmill on MujocoLeg) for the overhead ratio.
+   (g2p.experiments.run_treadmill on MujocoLeg) for the overhead ratio; medians of `--repeats` runs.
 """
 
 from __future__ import annotations
@@ -99,7 +100,7 @@ def subscriber_main(ticks: int) -> None:
     rclpy.shutdown()
 
 
-def rig_throughput(ticks: int, cap: float) -> dict[str, float]:
+def rig_throughput(ticks: int, cap: float, clock_period_ticks: int) -> dict[str, float]:
     """Play `ticks` babbling ticks on the fast sim with one subscriber taking everything."""
     sim = subprocess.Popen(
         [
@@ -109,6 +110,8 @@ def rig_throughput(ticks: int, cap: float) -> dict[str, float]:
             "time_mode:=fast",
             "-p",
             f"rig.fast_max_real_time_factor:={cap}",
+            "-p",
+            f"rig.clock_period_ticks:={clock_period_ticks}",
         ],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
@@ -147,6 +150,7 @@ def rig_throughput(ticks: int, cap: float) -> dict[str, float]:
     sim.wait(20)
     return {
         "cap": cap,
+        "clock_period_ticks": clock_period_ticks,
         "ticks": ticks,
         "sim_s": sim_s,
         "wall_s": wall,
@@ -157,8 +161,8 @@ def rig_throughput(ticks: int, cap: float) -> dict[str, float]:
     }
 
 
-def full_run() -> dict[str, float]:
-    """The main job through the graph, then the same run in-process."""
+def graph_run() -> dict[str, float]:
+    """The main job through the graph: wall time, rig time, the learner's CPU time and peak memory."""
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         bringup = subprocess.Popen(
@@ -179,21 +183,39 @@ def full_run() -> dict[str, float]:
             time.sleep(0.2)
         wall = time.perf_counter() - t0
         t_s = load_run(Path(tmp) / "bench").ticks.recording.t_s
-        sim_s = float(t_s[-1] - t_s[0])
+    return {
+        "wall_s": wall,
+        "rig_time_s": float(t_s[-1] - t_s[0]),
+        "learner_cpu_s": learner_cpu,
+        "learner_peak_rss_mb": learner_rss,
+    }
 
+
+def in_process_run() -> float:
+    """Wall time (s) of the same run in-process (run_treadmill on MujocoLeg)."""
     t0 = time.perf_counter()
     run_treadmill(
         Learner(LearnerConfig()), PlantRig(MujocoLeg(MujocoLegConfig())), SearchConfig(), LimitCycleConfig()
     )
-    in_process = time.perf_counter() - t0
+    return time.perf_counter() - t0
+
+
+def full_run(repeats: int) -> dict[str, object]:
+    """The main job through the graph and in-process, `repeats` times each; medians and every run."""
+    graph = [graph_run() for _ in range(repeats)]
+    in_process = [in_process_run() for _ in range(repeats)]
+    wall = float(np.median([g["wall_s"] for g in graph]))
+    rig_time = float(np.median([g["rig_time_s"] for g in graph]))
     return {
         "graph_wall_s": wall,
-        "rig_time_s": sim_s,
-        "real_time_factor": sim_s / wall,
-        "in_process_wall_s": in_process,
-        "overhead": wall / in_process,
-        "learner_cpu_s": learner_cpu,
-        "learner_peak_rss_mb": learner_rss,
+        "rig_time_s": rig_time,
+        "real_time_factor": rig_time / wall,
+        "in_process_wall_s": float(np.median(in_process)),
+        "overhead": wall / float(np.median(in_process)),
+        "learner_cpu_s": float(np.median([g["learner_cpu_s"] for g in graph])),
+        "learner_peak_rss_mb": float(np.max([g["learner_peak_rss_mb"] for g in graph])),
+        "graph_runs": graph,
+        "in_process_runs_wall_s": in_process,
     }
 
 
@@ -201,7 +223,11 @@ def main() -> None:
     """Run both measurements and print them as JSON."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ticks", type=int, default=23400, help="ticks for the rig throughput (5 min)")
-    parser.add_argument("--caps", default="30.0,0.0", help="real-time-factor caps to measure (0 = none)")
+    parser.add_argument("--caps", default="60.0,0.0", help="real-time-factor caps to measure (0 = none)")
+    parser.add_argument(
+        "--clock-period-ticks", type=int, default=8, help="ticks per /clock message (graph.yaml's sim: 8)"
+    )
+    parser.add_argument("--repeats", type=int, default=3, help="full runs, each way (medians reported)")
     parser.add_argument("--skip-full-run", action="store_true")
     parser.add_argument("--subscriber", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -209,10 +235,12 @@ def main() -> None:
         subscriber_main(args.subscriber)
         return
     results: dict[str, object] = {
-        "rig": [rig_throughput(args.ticks, float(cap)) for cap in args.caps.split(",")]
+        "rig": [
+            rig_throughput(args.ticks, float(cap), args.clock_period_ticks) for cap in args.caps.split(",")
+        ]
     }
     if not args.skip_full_run:
-        results["full_run"] = full_run()
+        results["full_run"] = full_run(args.repeats)
     print(json.dumps(results, indent=1))
 
 

@@ -1,13 +1,16 @@
 """The rig contract served over ROS 2 for any plant: the simulator and the hardware driver share it.
 
 One tick loop, in its own thread, decides each tick's activation (a running `run_activations` sequence,
-else the latest `activation_cmd` through the watchdog, else baseline), steps the plant, and publishes
-the tick's four messages with one shared stamp. Executor callbacks only hand work to the loop.
+else the latest `activation_cmd` through the watchdog, else baseline) and steps the plant; a publisher
+thread publishes each tick's four messages with one shared stamp, in order, while the loop steps the next
+tick (DDS writes release the GIL, so stepping and publishing overlap). A sequence or reset is reported
+done only once its last tick is published. Executor callbacks only hand work to the loop.
 """
 
 from __future__ import annotations
 
 import enum
+import queue
 import threading
 import time
 from collections import deque
@@ -88,6 +91,19 @@ class _Job:
     done: threading.Event = field(default_factory=threading.Event)
 
 
+@dataclass(frozen=True)
+class _Outgoing:
+    """A tick for the publisher thread; `then` is called once it is published (or cannot be)."""
+
+    sample: TickSample
+    clock: bool
+    then: Callable[[], None] | None = None
+
+
+# Ticks the loop may run ahead of the publisher before it waits (3 s of rig time at 78 Hz).
+_OUTBOX_TICKS = 256
+
+
 @dataclass
 class _ResetRequest:
     message: str = ""
@@ -133,10 +149,14 @@ class RigServer:
         self._reset: _ResetRequest | None = None
         self._lockstep: deque[np.ndarray] = deque()  # fast simulation: one tick per accepted command
         self._ignored_commands = 0
-        self._ticks = 0
+        self._ticks = 0  # stepped (loop thread)
+        self._published = 0  # published (publisher thread)
         self._faults = 0
         self._running = False
         self._thread: threading.Thread | None = None
+        self._outbox: queue.Queue[_Outgoing | None] = queue.Queue(maxsize=_OUTBOX_TICKS)
+        self._publisher: threading.Thread | None = None
+        self._publish_error: Exception | None = None  # raised in the publisher, handled by the loop
         self._stamp_offset_s = 0.0
         self._wall_start = 0.0
         self._burst: tuple[float, float] | None = None  # (wall, plant time) when on-demand ticking resumed
@@ -181,6 +201,8 @@ class RigServer:
         self._wall_start = time.monotonic() - first.t_s
         self._publish(first)
         self._running = True
+        self._publisher = threading.Thread(target=self._publish_loop, name="rig_publisher", daemon=True)
+        self._publisher.start()
         self._thread = threading.Thread(target=self._loop, name="rig_tick_loop", daemon=True)
         self._thread.start()
 
@@ -194,6 +216,9 @@ class RigServer:
             self._cv.notify_all()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
+        if self._publisher is not None:
+            self._outbox.put(None)  # after the ticks already queued
+            self._publisher.join(timeout=5.0)
         self._gate.stop()
 
     def destroy(self) -> None:
@@ -333,15 +358,14 @@ class RigServer:
                 self._fault(err, job)
                 continue
             self._pace(sample.t_s)
-            try:
-                self._publish(sample, clock=idle_next or self._ticks % self._config.clock_period_ticks == 0)
-            except Exception as err:  # the context went down under the loop: the owner makes the plant safe
-                if not self._node.context.ok():
-                    return
-                self._fault(err, job)
+            error, self._publish_error = self._publish_error, None
+            if error is not None:  # publishing failed: a fault like the plant's
+                self._fault(error, job)
                 continue
-            if job is not None:
-                self._advance(job, sample)
+            self._ticks += 1
+            clock = idle_next or self._ticks % self._config.clock_period_ticks == 0
+            then = self._advance(job, sample) if job is not None else None
+            self._outbox.put(_Outgoing(sample, clock, then))
 
     def _has_work(self) -> bool:
         return self._job is not None or self._reset is not None or bool(self._lockstep)
@@ -366,12 +390,16 @@ class RigServer:
             return len(job.samples) + 1 == len(job.activations)
         return not self._lockstep
 
-    def _advance(self, job: _Job, sample: TickSample) -> None:
+    def _advance(self, job: _Job, sample: TickSample) -> Callable[[], None] | None:
+        """Add the tick to the sequence; after its last tick, what ends it once that tick is published."""
         job.samples.append(sample)
-        if len(job.samples) == len(job.activations):
-            with self._cv:
-                self._finish(job)
-                self._gate.stop()  # the sequence is over: baseline until the next command
+        if len(job.samples) < len(job.activations):
+            return None
+        with self._cv:
+            if self._job is job:
+                self._job = None
+            self._gate.stop()  # the sequence is over: baseline until the next command
+        return job.done.set
 
     def _finish(self, job: _Job) -> None:
         if self._job is job:
@@ -386,8 +414,9 @@ class RigServer:
             self._fault(err, None)
         else:
             self._gate.stop()
-            self._publish(sample)
             req.success, req.message = True, "at rest"
+            self._outbox.put(_Outgoing(sample, True, req.done.set))
+            return
         req.done.set()
 
     def _fault(self, err: Exception, job: _Job | None) -> None:
@@ -417,6 +446,20 @@ class RigServer:
     def _stamp(self, t_s: float) -> float:
         return t_s + self._stamp_offset_s
 
+    def _publish_loop(self) -> None:
+        """Publish queued ticks in order until the None that `stop` queues; then ends what waits on them."""
+        dead = False  # the context went down: the owner makes the plant safe; only release the waiters
+        while (item := self._outbox.get()) is not None:
+            if not dead:
+                try:
+                    self._publish(item.sample, item.clock)
+                except Exception as err:
+                    dead = not self._node.context.ok()
+                    if not dead:
+                        self._publish_error = err
+            if item.then is not None:
+                item.then()
+
     def _publish(self, sample: TickSample, clock: bool = True) -> None:
         stamp = time_from_seconds(self._stamp(sample.t_s))
         joints, treadmill, power, applied = tick_messages(sample, stamp)
@@ -426,14 +469,14 @@ class RigServer:
         self._pub_treadmill.publish(treadmill)
         self._pub_power.publish(power)
         self._pub_applied.publish(applied)
-        self._ticks += 1
-        if self._ticks % self._config.diagnostics_period_ticks == 0:
+        self._published += 1
+        if self._published % self._config.diagnostics_period_ticks == 0:
             self._publish_diagnostics(stamp)
 
     def _publish_diagnostics(self, stamp: Time) -> None:
         c = self._gate.counters
         values = {
-            "ticks": self._ticks,
+            "ticks": self._published,
             "commands_accepted": c.accepted,
             "commands_clamped": c.clamped,
             "commands_rejected": c.rejected,
