@@ -59,6 +59,18 @@ def cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def child_pid(parent: int, command_part: str) -> int | None:
+    """The child process of `parent` whose command line contains `command_part`, if any."""
+    children = Path(f"/proc/{parent}/task/{parent}/children")
+    for pid in children.read_text().split() if children.exists() else []:
+        try:
+            if command_part in Path(f"/proc/{pid}/cmdline").read_text():
+                return int(pid)
+        except FileNotFoundError:
+            continue
+    return None
+
+
 def peak_rss_mb(pid: int) -> float:
     """Peak resident memory of a running process (MB)."""
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
@@ -173,8 +185,7 @@ def graph_run() -> dict[str, float]:
         learner_pid, learner_cpu, learner_rss = None, 0.0, 0.0
         while bringup.poll() is None:
             if learner_pid is None:
-                out = subprocess.run(["pgrep", "-f", "lib/g2p_learner/learn"], capture_output=True, text=True)
-                learner_pid = int(out.stdout.split()[0]) if out.stdout.strip() else None
+                learner_pid = child_pid(bringup.pid, "g2p_learner/learn")
             if learner_pid is not None:
                 try:
                     learner_cpu, learner_rss = cpu_s(learner_pid), max(learner_rss, peak_rss_mb(learner_pid))
@@ -236,7 +247,9 @@ def main() -> None:
         return
     results: dict[str, object] = {
         "rig": [
-            rig_throughput(args.ticks, float(cap), args.clock_period_ticks) for cap in args.caps.split(",")
+            rig_throughput(args.ticks, float(cap), args.clock_period_ticks)
+            for cap in args.caps.split(",")
+            if cap
         ]
     }
     if not args.skip_full_run:
