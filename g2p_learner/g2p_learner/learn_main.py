@@ -90,8 +90,10 @@ def run_learning(node: LearnerNode, dataset_bag: str, stop: threading.Event) -> 
     try:
         # The learner's own server, the rig and the recorder are discovered and settle together.
         missing = wait_all(
-            [ServerWatch("learn", client.server_is_ready), *node.watches], node.config.rig_timeout_s
+            [ServerWatch("learn", client.server_is_ready), *node.watches], node.config.rig_timeout_s, stop
         )
+        if stop.is_set():
+            return 130
         if missing:
             print(
                 f"learn: not on the graph after {node.config.rig_timeout_s:g} s: {', '.join(missing)}",

@@ -244,7 +244,8 @@ class LearnerNode(Node):
         def run(goal_handle: ServerGoalHandle) -> object:
             self._cancel.clear()
             try:
-                missing = wait_all(self.watches, self.config.rig_timeout_s)
+                missing = wait_all(self.watches, self.config.rig_timeout_s, self._cancel)
+                self._check_cancel(goal_handle)
                 if missing:
                     raise RigError(
                         f"not on the graph after {self.config.rig_timeout_s:g} s: {', '.join(missing)}"

@@ -33,7 +33,6 @@ from g2p_ros.graph import Graph, GraphError, NodeSpec, load_graph
 from g2p_ros.signals import init_with_stop_event
 
 STOP_TIMEOUT_S = 20.0
-START_TIMEOUT_S = 60.0
 
 
 def _parse(argv: list[str]) -> argparse.Namespace:
@@ -114,7 +113,7 @@ def run(graph: Graph, log_dir: Path, stop: threading.Event) -> int:
     """Start the graph, wait for the main node to exit (or for `stop`), stop everything; main's exit code.
 
     The nodes start together; the learner waits for the rig and the recorder itself (its `recorder_node`
-    parameter). When another node exits first, the run is stopped: nothing runs unrecorded or riderless.
+    parameter). When another node exits first, the run is stopped: nothing runs unrecorded or unattended.
     """
     procs: list[Process] = []
     code = 1

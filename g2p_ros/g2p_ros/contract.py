@@ -1,5 +1,6 @@
 """Names and QoS of the rig contract, identical for the simulator and the hardware driver."""
 
+import threading
 import time
 from collections.abc import Callable, Iterable
 
@@ -77,16 +78,22 @@ class ServerWatch:
         return not wait_all([self], timeout_s)
 
 
-def wait_all(watches: Iterable[ServerWatch], timeout_s: float, poll_s: float = 0.02) -> list[str]:
+def wait_all(
+    watches: Iterable[ServerWatch],
+    timeout_s: float,
+    stop: threading.Event | None = None,
+    poll_s: float = 0.02,
+) -> list[str]:
     """Wait for every watch at once, so discoveries and settling overlap.
 
     Returns:
-        the names of the watches still not ready after `timeout_s` (s); empty when all are.
+        the names of the watches still not ready after `timeout_s` (s) or when `stop` was set; empty when
+        all are ready.
     """
     pending = list(watches)
     deadline = time.monotonic() + timeout_s
     while True:
         pending = [w for w in pending if not w.poll()]
-        if not pending or time.monotonic() > deadline:
+        if not pending or time.monotonic() > deadline or (stop is not None and stop.is_set()):
             return [w.name for w in pending]
         time.sleep(poll_s)

@@ -168,7 +168,7 @@ def test_a_goal_waits_for_the_recorder_and_names_it_when_it_never_comes(tmp_path
         done = client.run(client.babble, Babble.Goal(duration_s=10.0))
         assert done.status == GoalStatus.STATUS_ABORTED
         assert "recorder /leg/no_such_recorder" in done.result.message
-        assert client.applied == []  # nothing was played unrecorded
+        assert all(a == [0.15] * 3 for a in client.applied)  # nothing was played unrecorded
     finally:
         client.close()
         codes = [proc.stop() for proc in (learner, sim)]  # both stopped before either is judged
@@ -236,3 +236,17 @@ def test_make_run_equivalent_records_a_run_whose_map_can_be_rebuilt_from_the_bag
     recorded = InverseMap.from_arrays(data.inverse_map)
     x = np.random.default_rng(0).normal(size=(200, 6))
     np.testing.assert_array_equal(learner.inverse_map.predict(x), recorded.predict(x))
+
+
+def test_bringup_stops_the_run_when_the_recorder_cannot_record(tmp_path: Path) -> None:
+    """A recorder that exits at start (it cannot write its bags directory) ends the run, unrecorded."""
+    proc = subprocess.run(
+        [str(executable("g2p_ros", "bringup")), "--bags-dir", "/proc/no-such-dir", "--run-id", "x"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert "recorder exited" in proc.stderr
+    assert "babbling" not in proc.stdout  # the learner never started its run
