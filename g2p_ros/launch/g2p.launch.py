@@ -2,8 +2,9 @@
 
     ros2 launch g2p_ros g2p.launch.py rig:=sim run_id:=my-run bags_dir:=bags
 
-Every node of config/graph.yaml starts with its parameters and remappings. Unlike `bringup`, launch
-starts them all at once and does not write the report; run `ros2 run g2p_ros report bags/<run_id>` after.
+Every node of config/graph.yaml starts with its parameters and remappings, all at once as `bringup` starts
+them; the learner begins only once the recorder hears the rig (its `recorder_node` parameter). Unlike
+`bringup`, launch does not write the report; run `ros2 run g2p_ros report bags/<run_id>` after.
 """
 
 from datetime import datetime, timezone
