@@ -396,14 +396,17 @@ class RigServer:
         if len(job.samples) < len(job.activations):
             return None
         with self._cv:
-            if self._job is job:
-                self._job = None
+            self._release(job)
             self._gate.stop()  # the sequence is over: baseline until the next command
         return job.done.set
 
-    def _finish(self, job: _Job) -> None:
+    def _release(self, job: _Job) -> None:
+        """The loop plays `job` no more (lock held)."""
         if self._job is job:
             self._job = None
+
+    def _finish(self, job: _Job) -> None:
+        self._release(job)
         job.done.set()
 
     def _do_reset(self, req: _ResetRequest) -> None:

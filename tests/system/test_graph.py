@@ -34,6 +34,13 @@ def start_sim(log_dir: Path, namespace: str = "/leg", *extra: str) -> NodeProces
     )
 
 
+def run_bringup(cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    """The installed `bringup` with `args`, run to its end in `cwd`; its output captured."""
+    return subprocess.run(
+        [str(executable("g2p_ros", "bringup")), *args], capture_output=True, text=True, timeout=600, cwd=cwd
+    )
+
+
 def start_learner(log_dir: Path, *extra: str) -> NodeProcess:
     return NodeProcess(
         "g2p_learner", "learn", ["--serve", "--ros-args", "-p", "use_sim_time:=true", *SHORT, *extra], log_dir
@@ -193,26 +200,20 @@ def test_the_learner_survives_the_rig_restarting_between_goals(tmp_path: Path) -
 def test_make_run_equivalent_records_a_run_whose_map_can_be_rebuilt_from_the_bag(tmp_path: Path) -> None:
     """The bring-up of the main job, shortened; the map rebuilt from the bag equals the recorded one."""
     bags = tmp_path / "bags"
-    proc = subprocess.run(
-        [
-            str(executable("g2p_ros", "bringup")),
-            "--bags-dir",
-            str(bags),
-            "--run-id",
-            "test-run",
-            "--set",
-            "learner.learner.babbling.duration_s=20.0",
-            "--set",
-            "learner.cycle.n_cycles=4",
-            "--set",
-            "learner.search.max_exploration_attempts=3",
-            "--set",
-            "learner.search.exploitation_attempts=2",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        cwd=tmp_path,
+    proc = run_bringup(
+        tmp_path,
+        "--bags-dir",
+        str(bags),
+        "--run-id",
+        "test-run",
+        "--set",
+        "learner.learner.babbling.duration_s=20.0",
+        "--set",
+        "learner.cycle.n_cycles=4",
+        "--set",
+        "learner.search.max_exploration_attempts=3",
+        "--set",
+        "learner.search.exploitation_attempts=2",
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "| test-run |" in proc.stdout
@@ -240,13 +241,7 @@ def test_make_run_equivalent_records_a_run_whose_map_can_be_rebuilt_from_the_bag
 
 def test_bringup_stops_the_run_when_the_recorder_cannot_record(tmp_path: Path) -> None:
     """A recorder that exits at start (it cannot write its bags directory) ends the run, unrecorded."""
-    proc = subprocess.run(
-        [str(executable("g2p_ros", "bringup")), "--bags-dir", "/proc/no-such-dir", "--run-id", "x"],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=tmp_path,
-    )
+    proc = run_bringup(tmp_path, "--bags-dir", "/proc/no-such-dir", "--run-id", "x")
     assert proc.returncode == 1, proc.stdout + proc.stderr
     assert "recorder exited" in proc.stderr
     assert "babbling" not in proc.stdout  # the learner never started its run
