@@ -165,11 +165,11 @@ def run_rig_server(seconds: float, sched_fifo: int, seed: int, rig_config: str =
     node = Node("bench_driver", namespace="/bench_leg", context=context)
     executor = MultiThreadedExecutor(num_threads=3, context=context)
     executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
     plant = _StampingPlant(make_leg(sched_fifo, rig_config))
     server = RigServer(node, plant, Pacing.PLANT)  # type: ignore[arg-type]
     client = ActionClient(node, RunActivations, contract.RUN_ACTIVATIONS)
+    spinner = threading.Thread(target=executor.spin, daemon=True)  # after the entities exist
+    spinner.start()
     try:
         server.start()
         assert client.wait_for_server(timeout_sec=10.0), "the rig server's action did not appear"

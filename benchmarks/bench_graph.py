@@ -137,8 +137,8 @@ def rig_throughput(ticks: int, cap: float, clock_period_ticks: int) -> dict[str,
     node = Node("bench_client", namespace="/leg")
     executor = MultiThreadedExecutor()
     executor.add_node(node)
-    threading.Thread(target=executor.spin, daemon=True).start()
     client = ActionClient(node, RunActivations, contract.RUN_ACTIVATIONS)
+    threading.Thread(target=executor.spin, daemon=True).start()  # after the client exists
     watch = contract.ServerWatch("run_activations", client.server_is_ready)
     assert watch.wait_until_ready(60.0)
     time.sleep(2.0)  # let the subscriber match the rig's publishers

@@ -30,12 +30,14 @@ def main(args: list[str] | None = None) -> None:
     node = Node("tendon_check", namespace=DEFAULT_NAMESPACE)
     executor = MultiThreadedExecutor(num_threads=2)
     executor.add_node(node)
-    spinner = BackgroundSpinner(executor).start()
+    # Spun only once the client exists: rclpy's ActionClient joins the node before it is fully built.
+    spinner = BackgroundSpinner(executor)
     client: RigClient | None = None
     code = 2
     try:
         config = declare_config(node, TendonCheckConfig)
         client = RigClient(node, server_timeout_s=30.0)
+        spinner.start()
         report = check_tendons(client, config)
         print(report.text())
         code = 0 if report.ok else 1

@@ -81,28 +81,24 @@ def _summary(result: Learn.Result, status_ok: bool, threshold_mm: float) -> str:
     return "\n".join(lines)
 
 
-def run_learning(node: LearnerNode, dataset_bag: str, stop: threading.Event) -> int:
-    """Send one learn goal to the node's own action server and report; returns the exit code.
+def run_learning(node: LearnerNode, client: ActionClient, dataset_bag: str, stop: threading.Event) -> int:
+    """Send one learn goal to the node's own action server through `client` and report; the exit code.
 
     When `stop` is set (Ctrl-C, SIGTERM) the goal is cancelled, which drops the rig to baseline.
     """
-    client = ActionClient(node, Learn, "learn")
-    try:
-        # The learner's own server, the rig and the recorder are discovered and settle together.
-        missing = wait_all(
-            [ServerWatch("learn", client.server_is_ready), *node.watches], node.config.rig_timeout_s, stop
+    # The learner's own server, the rig and the recorder are discovered and settle together.
+    missing = wait_all(
+        [ServerWatch("learn", client.server_is_ready), *node.watches], node.config.rig_timeout_s, stop
+    )
+    if stop.is_set():
+        return 130
+    if missing:
+        print(
+            f"learn: not on the graph after {node.config.rig_timeout_s:g} s: {', '.join(missing)}",
+            file=sys.stderr,
         )
-        if stop.is_set():
-            return 130
-        if missing:
-            print(
-                f"learn: not on the graph after {node.config.rig_timeout_s:g} s: {', '.join(missing)}",
-                file=sys.stderr,
-            )
-            return 1
-        return _run_goal(client, dataset_bag, stop, node.config.search.threshold_mm)
-    finally:
-        client.destroy()
+        return 1
+    return _run_goal(client, dataset_bag, stop, node.config.search.threshold_mm)
 
 
 def _run_goal(client: ActionClient, dataset_bag: str, stop: threading.Event, threshold_mm: float) -> int:
@@ -131,17 +127,20 @@ def main(args: list[str] | None = None) -> None:
     options = _parse(argv)
     stop = init_with_stop_event(argv)  # a signal cancels the goal on the rig while the executor spins
     node = None
+    client = None
     code = 0
     spinner = None
     try:
         node = LearnerNode()
+        # Before spinning starts: rclpy's ActionClient joins the node before it is fully built.
+        client = None if options.serve else ActionClient(node, Learn, "learn")
         executor = MultiThreadedExecutor(num_threads=4)
         executor.add_node(node)
         spinner = BackgroundSpinner(executor).start()
-        if options.serve:
+        if client is None:
             stop.wait()
         else:
-            code = run_learning(node, options.dataset_bag, stop)
+            code = run_learning(node, client, options.dataset_bag, stop)
     except ConfigError as err:
         print(f"learn: invalid parameter {err}", file=sys.stderr)
         code = 2
@@ -150,6 +149,8 @@ def main(args: list[str] | None = None) -> None:
             node.stop_goals(timeout_s=10.0)  # while the executor still spins: cancels reach the rig
         if spinner is not None:
             spinner.stop()
+        if client is not None:
+            client.destroy()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

@@ -87,7 +87,10 @@ def stop_leftovers() -> None:
 
 
 class RosPeer:
-    """A test-side rclpy node in its own Context, spun in a background thread.
+    """A test-side rclpy node in its own Context, spun in a background thread once `start` is called.
+
+    Subclasses create their entities, then call `start`: rclpy's ActionClient registers itself with the
+    node before it is fully built, and an executor spinning meanwhile fails on it.
 
     Args:
         name: node name.
@@ -102,7 +105,11 @@ class RosPeer:
         # (ros2/rclpy#1452); the test's own thread waits on futures, so one spinning thread is enough.
         executor = SingleThreadedExecutor(context=self.context)
         executor.add_node(self.node)
-        self._spinner = BackgroundSpinner(executor).start()
+        self._spinner = BackgroundSpinner(executor)
+
+    def start(self) -> None:
+        """Start spinning the node (after its entities are created)."""
+        self._spinner.start()
 
     def wait(self, future: Future, timeout_s: float) -> Any:
         """The future's result; fails the test after `timeout_s` (s)."""

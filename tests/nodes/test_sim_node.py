@@ -57,6 +57,7 @@ class RigPeer(RosPeer):
         self.cmd = self.node.create_publisher(MotorActivation, contract.ACTIVATION_CMD, contract.COMMAND_QOS)
         self.action = ActionClient(self.node, RunActivations, contract.RUN_ACTIVATIONS)
         self.reset = self.node.create_client(Trigger, contract.RESET)
+        self.start()
 
     def destroy_entities(self) -> None:
         self.action.destroy()

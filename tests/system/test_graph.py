@@ -63,6 +63,7 @@ class LearnerClient(RosPeer):
             lambda m: self.applied.append(list(m.activation)),
             10000,
         )
+        self.start()
         for client in (self.babble, self.attempt, self.learn, self.track):
             assert client.wait_for_server(timeout_sec=60.0), "the learner's actions never appeared"
         time.sleep(contract.DISCOVERY_SETTLE_S)  # see contract.ServerWatch
