@@ -30,7 +30,7 @@ def main(args: list[str] | None = None) -> None:
     node = Node("tendon_check", namespace=DEFAULT_NAMESPACE)
     executor = MultiThreadedExecutor(num_threads=2)
     executor.add_node(node)
-    # Spun only once the client exists: rclpy's ActionClient joins the node before it is fully built.
+    # Spun once the client exists: rclpy's ActionClient joins the node half-built (ros2/rclpy#1589).
     spinner = BackgroundSpinner(executor)
     client: RigClient | None = None
     code = 2

@@ -132,7 +132,7 @@ def main(args: list[str] | None = None) -> None:
     spinner = None
     try:
         node = LearnerNode()
-        # Before spinning starts: rclpy's ActionClient joins the node before it is fully built.
+        # Before spinning starts: rclpy's ActionClient joins the node half-built (ros2/rclpy#1589).
         client = None if options.serve else ActionClient(node, Learn, "learn")
         executor = MultiThreadedExecutor(num_threads=4)
         executor.add_node(node)

@@ -90,7 +90,7 @@ class RosPeer:
     """A test-side rclpy node in its own Context, spun in a background thread once `start` is called.
 
     Subclasses create their entities, then call `start`: rclpy's ActionClient registers itself with the
-    node before it is fully built, and an executor spinning meanwhile fails on it.
+    node before it is fully built, and an executor spinning meanwhile fails on it (ros2/rclpy#1589).
 
     Args:
         name: node name.
