@@ -28,6 +28,7 @@ import numpy as np
 import rclpy
 from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
@@ -80,7 +81,11 @@ def peak_rss_mb(pid: int) -> float:
 
 
 def subscriber_main(ticks: int) -> None:
-    """Child process: count every message of every rig topic and /clock until `ticks` ticks arrived."""
+    """Child process: count every message of every rig topic and /clock until `ticks` ticks arrived.
+
+    Raw subscriptions on an EventsExecutor, like the recorder: rclpy's Python executors take fewer
+    messages per second than the rig publishes, and a reader that falls 10,000 samples behind loses some.
+    """
     rclpy.init()
     node = Node("bench_subscriber", namespace="/leg")
     counts = {"joint_states": 0, "treadmill": 0, "motor_power": 0, "applied_activation": 0, "clock": 0}
@@ -98,15 +103,17 @@ def subscriber_main(ticks: int) -> None:
         ("motor_power", MotorPower),
         ("applied_activation", MotorActivation),
     ):
-        node.create_subscription(msg_type, name, counter(name), deep)
-    node.create_subscription(Clock, "/clock", counter("clock"), contract.CLOCK_QOS)
+        node.create_subscription(msg_type, name, counter(name), deep, raw=True)
+    node.create_subscription(Clock, "/clock", counter("clock"), contract.CLOCK_QOS, raw=True)
+    executor = EventsExecutor()
+    executor.add_node(node)
     print("ready", flush=True)
     deadline = time.monotonic() + 600
     while counts["applied_activation"] < ticks and time.monotonic() < deadline:
-        rclpy.spin_once(node, timeout_sec=0.5)
+        executor.spin_once(timeout_sec=0.5)
     end = time.monotonic() + 2.0
     while time.monotonic() < end:  # whatever is still in flight
-        rclpy.spin_once(node, timeout_sec=0.1)
+        executor.spin_once(timeout_sec=0.1)
     print(json.dumps(counts), flush=True)
     node.destroy_node()
     rclpy.shutdown()
