@@ -3,7 +3,7 @@
 One tick loop, in its own thread, decides each tick's activation (a running `run_activations` sequence,
 else the latest `activation_cmd` through the watchdog, else baseline) and steps the plant; a publisher
 thread publishes each tick's four messages with one shared stamp, in order, while the loop steps the next
-tick (DDS writes release the GIL, so stepping and publishing overlap). A sequence or reset is reported
+tick (MuJoCo steps without the GIL, so stepping and publishing overlap). A sequence or reset is reported
 done only once its last tick is published. Executor callbacks only hand work to the loop.
 """
 
