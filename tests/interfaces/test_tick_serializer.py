@@ -1,4 +1,4 @@
-"""The rig's serialized tick messages read back, by rclpy and by rosbags, as the messages of `tick_messages`."""
+"""The rig's serialized tick messages read back (rclpy, rosbags) as the messages of `tick_messages`."""
 
 from __future__ import annotations
 
@@ -7,7 +7,6 @@ import pytest
 from rclpy.serialization import deserialize_message
 
 from g2p.bags.interfaces import InterfaceLibrary, TypeRegistry, ament_share_dirs
-
 from g2p.plant import TickSample
 from g2p_ros.convert import TickSerializer, stamp_ns, tick_messages, time_from_ns
 
@@ -37,8 +36,12 @@ def test_deserializes_to_the_messages(t_s: float) -> None:
         ns = stamp_ns(t_s)
         got = serializer.serialize(sample, ns)
         want = tick_messages(sample, time_from_ns(ns))
-        assert [deserialize_message(data, type(msg)) for data, msg in zip(got, want)] == list(want)
-        for data, msg in zip(got, want):  # rosbags checks the length too, as the report's bag reader does
+        assert [deserialize_message(data, type(msg)) for data, msg in zip(got, want, strict=True)] == list(
+            want
+        )
+        for data, msg in zip(
+            got, want, strict=True
+        ):  # rosbags checks the length too, as the report's bag reader does
             name = f"{type(msg).__module__.split('.')[0]}/msg/{type(msg).__name__}"
             types.register(name)
             decoded = types.typestore.deserialize_cdr(data, name)
@@ -59,11 +62,10 @@ def test_every_value_lands_in_its_field() -> None:
         power_w=np.array([next(values) for _ in range(3)]),
         energy_j=np.array([next(values) for _ in range(3)]),
     )
+    serialized = TickSerializer().serialize(sample, 1_500_000_000)
+    messages = tick_messages(sample, time_from_ns(0))
     joints, treadmill, power, applied = (
-        deserialize_message(data, type(msg))
-        for data, msg in zip(
-            TickSerializer().serialize(sample, 1_500_000_000), tick_messages(sample, time_from_ns(0))
-        )
+        deserialize_message(data, type(msg)) for data, msg in zip(serialized, messages, strict=True)
     )
     assert list(applied.activation) == [1.0, 2.0, 3.0]
     assert list(joints.position) == [4.0, 5.0] and list(joints.velocity) == [6.0, 7.0]
