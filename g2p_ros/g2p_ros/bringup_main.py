@@ -12,6 +12,7 @@ finalizes the bag. Then the run's report is written beside the bag.
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import subprocess
 import sys
@@ -70,6 +71,14 @@ def _overrides(settings: list[str]) -> dict[str, dict[str, Any]]:
     return out
 
 
+def _node_environment() -> dict[str, str]:
+    """The nodes' environment: ours, with the graph's Fast DDS profile unless one is set already."""
+    env = dict(os.environ)
+    profile = Path(get_package_share_directory("g2p_ros")) / "config" / "fastdds_discovery.xml"
+    env.setdefault("FASTDDS_DEFAULT_PROFILES_FILE", str(profile))
+    return env
+
+
 class Process:
     """One node of the graph running as a child process in its own session (Ctrl-C reaches only us)."""
 
@@ -87,7 +96,11 @@ class Process:
             self._log = open(self.log_path, "wb")
             out = self._log
         self.popen = subprocess.Popen(
-            command, stdout=out, stderr=subprocess.STDOUT if out else None, start_new_session=True
+            command,
+            stdout=out,
+            stderr=subprocess.STDOUT if out else None,
+            start_new_session=True,
+            env=_node_environment(),
         )
 
     def running(self) -> bool:
