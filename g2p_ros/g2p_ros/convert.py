@@ -64,9 +64,9 @@ class TickSerializer:
     Building the four messages costs about 40 us per tick (rclpy's field setters check every value) with
     the GIL held, which in fast simulation limits the rig (docs/RESULTS.md). Every per-tick field has a
     fixed size (two joints, three motors, a constant frame_id), so each message's serialized form is a
-    template with the tick's numbers at fixed offsets. The templates are rclpy's own serialization of
-    `tick_messages` for a sample whose every number is a distinct sentinel; each sentinel's position is
-    where its value goes.
+    template with the tick's numbers at fixed offsets. The templates are `tick_messages` for a sample whose
+    every number is a distinct sentinel, serialized by rclpy and normalized by rosbags (`_canonical`); each
+    sentinel's position is where its value goes.
 
     Raises:
         ValueError: (at construction) a sentinel is not found exactly once, i.e. the layout is not fixed.
