@@ -11,6 +11,8 @@ Training minimizes the mean squared error on a random training split with early 
 validation split (the weights of the best validation error are kept); each sample keeps its side of the split
 across refinements. The default optimizer is
 Levenberg-Marquardt, as the authors' MATLAB trainlm; full-batch L-BFGS and minibatch Adam are selectable.
+The training runs in torch (`g2p.inverse_map_training`), imported by the first fit: torch takes about a second
+to import, and the map's configuration, prediction and files need none of it.
 """
 
 from __future__ import annotations
@@ -20,13 +22,11 @@ import math
 import os
 import time
 import zipfile
-from collections.abc import Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import torch
 from numpy.typing import ArrayLike, NDArray
 
 from g2p.config import ConfigError, require, require_positive, require_range
@@ -230,7 +230,7 @@ class InverseMap:
     def __init__(self, config: InverseMapConfig | None = None) -> None:
         self.config = config or InverseMapConfig()
         # w_hidden (H, 6), b_hidden (H,), w_out (3, H), b_out (3,)
-        self._params: list[torch.Tensor] | None = None
+        self._params: list[FloatArray] | None = None
         self._x: _Scaling | None = None
         self._y: _Scaling | None = None
         self._is_validation: NDArray[np.bool_] | None = None  # the split of every sample seen so far
@@ -316,7 +316,7 @@ class InverseMap:
             raise InverseMapError(f"x: expected shape (N, {N_INPUTS}), got {np.shape(x)}")
         if not np.all(np.isfinite(xa)):
             raise InverseMapError("x: non-finite values")
-        w1, b1, w2, b2 = (p.detach().numpy() for p in params)
+        w1, b1, w2, b2 = params
         out = ys.inverse(np.tanh(xs.forward(xa) @ w1.T + b1) @ w2.T + b2)
         out = np.clip(out, self.config.activation_low, self.config.activation_high)
         return out[0] if single else out
@@ -331,7 +331,7 @@ class InverseMap:
             y * y_scale + y_offset.
         """
         params, xs, ys = self._require_fitted()
-        w1, b1, w2, b2 = (p.detach().numpy().copy() for p in params)
+        w1, b1, w2, b2 = (p.copy() for p in params)
         return {
             "format_version": np.array([float(FORMAT_VERSION)]),
             "w_hidden": w1,
@@ -396,7 +396,7 @@ class InverseMap:
         except ConfigError as err:
             raise InverseMapFormatError(f"{source}: {err}") from err
         net = cls(cfg)
-        net._params = [torch.tensor(a[k]) for k in ("w_hidden", "b_hidden", "w_out", "b_out")]
+        net._params = [a[k].copy() for k in ("w_hidden", "b_hidden", "w_out", "b_out")]
         net._x = _Scaling(a["x_offset"], a["x_scale"])
         net._y = _Scaling(a["y_offset"], a["y_scale"])
         return net
@@ -438,7 +438,7 @@ class InverseMap:
             )
         return cls.from_arrays(arrays, config, source=os.fspath(path))
 
-    def _require_fitted(self) -> tuple[list[torch.Tensor], _Scaling, _Scaling]:
+    def _require_fitted(self) -> tuple[list[FloatArray], _Scaling, _Scaling]:
         if self._params is None or self._x is None or self._y is None:
             raise InverseMapError("the inverse map is not fitted: call fit() or load() first")
         return self._params, self._x, self._y
@@ -446,35 +446,27 @@ class InverseMap:
     def _train(
         self, x: FloatArray, y: FloatArray, rng: np.random.Generator, max_iterations: int
     ) -> FitReport:
+        from g2p.inverse_map_training import train  # torch: see the module docstring
+
         params, xs, ys = self._require_fitted()
         cfg = self.config
         self._is_validation = _extend_split(self._is_validation, len(x), cfg.validation_fraction, rng)
-        val, train = np.flatnonzero(self._is_validation), np.flatnonzero(~self._is_validation)
-        xn, yn = torch.from_numpy(xs.forward(x)), torch.from_numpy(ys.forward(y))
-        split = _Split(xn[train], yn[train], xn[val], yn[val])
+        val, train_rows = np.flatnonzero(self._is_validation), np.flatnonzero(~self._is_validation)
+        xn, yn = xs.forward(x), ys.forward(y)
         start = time.perf_counter()
-        with _threads(cfg.num_threads):
-            trainer = {Optimizer.LM: _train_lm, Optimizer.LBFGS: _train_lbfgs, Optimizer.ADAM: _train_adam}
-            theta, iterations, best_iteration, reason = trainer[cfg.optimizer](
-                _flatten(params), split, cfg, max_iterations, rng
-            )
-        self._params = _unflatten(theta, cfg.n_hidden)
-        # Errors in activation units: the normalized error times each output's scale.
-        out_scale = torch.from_numpy(ys.scale)
-        with torch.no_grad():
-            rmse = [
-                float(torch.sqrt(torch.mean(((_forward(theta, cfg.n_hidden, xx) - yy) * out_scale) ** 2)))
-                for xx, yy in ((split.x_train, split.y_train), (split.x_val, split.y_val))
-            ]
+        result = train(
+            params, xn[train_rows], yn[train_rows], xn[val], yn[val], ys.scale, cfg, max_iterations, rng
+        )
+        self._params = result.params
         self.last_report = FitReport(
-            len(train),
+            len(train_rows),
             len(val),
-            iterations,
-            best_iteration,
-            rmse[0],
-            rmse[1],
+            result.iterations,
+            result.best_iteration,
+            result.train_rmse,
+            result.validation_rmse,
             time.perf_counter() - start,
-            reason,
+            result.stop_reason,
         )
         return self.last_report
 
@@ -508,7 +500,7 @@ def _extend_split(
     return out
 
 
-def _init_params(n_hidden: int, rng: np.random.Generator) -> list[torch.Tensor]:
+def _init_params(n_hidden: int, rng: np.random.Generator) -> list[FloatArray]:
     """Nguyen-Widrow hidden layer (MATLAB's initnw): units spread so their active regions tile [-1, 1]^6."""
     beta = 0.7 * n_hidden ** (1.0 / N_INPUTS)
     w1 = rng.uniform(-1.0, 1.0, size=(n_hidden, N_INPUTS))
@@ -516,206 +508,4 @@ def _init_params(n_hidden: int, rng: np.random.Generator) -> list[torch.Tensor]:
     b1 = beta * np.linspace(-1.0, 1.0, n_hidden) * np.sign(w1[:, 0]) if n_hidden > 1 else np.zeros(1)
     w2 = rng.uniform(-1.0, 1.0, size=(N_OUTPUTS, n_hidden)) / math.sqrt(n_hidden)
     b2 = np.zeros(N_OUTPUTS)
-    return [torch.from_numpy(a) for a in (w1, b1, w2, b2)]
-
-
-def _flatten(params: list[torch.Tensor]) -> torch.Tensor:
-    """Parameter vector: [w_hidden | b_hidden] (H, 7) row-major, then [w_out | b_out] (3, H + 1) row-major."""
-    w1, b1, w2, b2 = (p.detach().to(torch.float64) for p in params)
-    hidden, out = torch.cat([w1, b1[:, None]], 1), torch.cat([w2, b2[:, None]], 1)
-    return torch.cat([hidden.reshape(-1), out.reshape(-1)])
-
-
-def _split_theta(theta: torch.Tensor, n_hidden: int) -> tuple[torch.Tensor, ...]:
-    """Views (w_hidden, b_hidden, w_out, b_out) into a parameter vector."""
-    h = n_hidden
-    hidden = theta[: h * (N_INPUTS + 1)].reshape(h, N_INPUTS + 1)
-    out = theta[h * (N_INPUTS + 1) :].reshape(N_OUTPUTS, h + 1)
-    return hidden[:, :N_INPUTS], hidden[:, N_INPUTS], out[:, :h], out[:, h]
-
-
-def _unflatten(theta: torch.Tensor, n_hidden: int) -> list[torch.Tensor]:
-    return [p.clone() for p in _split_theta(theta.detach(), n_hidden)]
-
-
-def _forward(theta: torch.Tensor, n_hidden: int, x: torch.Tensor) -> torch.Tensor:
-    w1, b1, w2, b2 = _split_theta(theta, n_hidden)
-    return torch.addmm(b2, torch.tanh(torch.addmm(b1, x, w1.T)), w2.T)
-
-
-@contextmanager
-def _threads(n: int) -> Iterator[None]:
-    """Set torch's intra-op threads for the duration (n = 0: leave as is)."""
-    if n == 0:
-        yield
-        return
-    before = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
-
-
-@dataclass(frozen=True)
-class _Split:
-    x_train: torch.Tensor
-    y_train: torch.Tensor
-    x_val: torch.Tensor
-    y_val: torch.Tensor
-
-
-class _EarlyStopping:
-    """Keeps the parameters of the best validation error; says when `patience` checks brought none better."""
-
-    def __init__(self, theta: torch.Tensor, split: _Split, n_hidden: int, patience: int) -> None:
-        self.split, self.n_hidden, self.patience = split, n_hidden, patience
-        self.best_theta = theta.detach().clone()
-        self.best_error = self.error(theta)
-        self.best_iteration = 0
-        self.fails = 0
-
-    def error(self, theta: torch.Tensor) -> float:
-        with torch.no_grad():
-            out = _forward(theta, self.n_hidden, self.split.x_val)
-            return float(torch.mean((out - self.split.y_val) ** 2))
-
-    def should_stop(self, theta: torch.Tensor, iteration: int) -> bool:
-        err = self.error(theta)
-        if err < self.best_error:
-            self.best_theta, self.best_error = theta.detach().clone(), err
-            self.best_iteration, self.fails = iteration, 0
-            return False
-        self.fails += 1
-        return self.fails >= self.patience
-
-
-def _train_lm(
-    theta: torch.Tensor, split: _Split, cfg: InverseMapConfig, max_iterations: int, rng: np.random.Generator
-) -> tuple[torch.Tensor, int, int, StopReason]:
-    """Levenberg-Marquardt with MATLAB trainlm's damping schedule and an analytic Gauss-Newton matrix."""
-    del rng  # full batch, deterministic
-    h, x, y = cfg.n_hidden, split.x_train, split.y_train
-    stopper = _EarlyStopping(theta, split, h, cfg.patience)
-    mu = cfg.lm_mu
-    eye = torch.eye(theta.numel(), dtype=torch.float64)
-    hid, res = _hidden_and_residual(theta, h, x, y)
-    sse = float(torch.sum(res * res))
-    for it in range(1, max_iterations + 1):
-        jtj, grad = _gauss_newton(theta, h, x, hid, res)
-        while True:  # raise the damping until a step lowers the training error
-            candidate = theta - torch.linalg.solve(jtj + mu * eye, grad)
-            hid_c, res_c = _hidden_and_residual(candidate, h, x, y)
-            sse_c = float(torch.sum(res_c * res_c))
-            if sse_c < sse:
-                theta, hid, res, sse = candidate, hid_c, res_c, sse_c
-                mu = max(mu * cfg.lm_mu_decrease, 1e-20)
-                break
-            mu *= cfg.lm_mu_increase
-            if mu > cfg.lm_mu_max:
-                return stopper.best_theta, it - 1, stopper.best_iteration, StopReason.CONVERGED
-        if stopper.should_stop(theta, it):
-            return stopper.best_theta, it, stopper.best_iteration, StopReason.VALIDATION
-    return stopper.best_theta, max_iterations, stopper.best_iteration, StopReason.MAX_ITERATIONS
-
-
-def _hidden_and_residual(
-    theta: torch.Tensor, n_hidden: int, x: torch.Tensor, y: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Hidden activations (n, H) and residuals net(x) - y (n, 3)."""
-    w1, b1, w2, b2 = _split_theta(theta, n_hidden)
-    hid = torch.tanh(torch.addmm(b1, x, w1.T))
-    return hid, torch.addmm(b2, hid, w2.T) - y
-
-
-def _gauss_newton(
-    theta: torch.Tensor, n_hidden: int, x: torch.Tensor, hid: torch.Tensor, res: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """J^T J and J^T r of the residuals r = net(x) - y over all outputs, without forming J.
-
-    With d = 1 - h^2, xa = [x, 1] and ha = [h, 1] per sample, output k's Jacobian row is
-    [(w_out[k] * d) (x) xa, e_k (x) ha]. Hence the hidden block of J^T J is (P^T P) * kron(w_out^T w_out, 1)
-    with P = d (x) xa (one product for the three outputs), the output block is kron(I_3, ha^T ha), and the
-    cross block of output k is (P^T ha) * w_out[k] per hidden unit. The products with P are computed in
-    float32 (they only shape the step; every step is accepted on the float64 error); the gradient is float64.
-
-    Args:
-        theta: parameters (see `_flatten`).
-        n_hidden: hidden units H.
-        x: inputs (n, 6).
-        hid: hidden activations at theta (n, H).
-        res: residuals at theta (n, 3).
-    """
-    h_units, n = n_hidden, len(x)
-    _, _, w2, _ = _split_theta(theta, h_units)
-    d = 1.0 - hid * hid
-    ones = torch.ones(n, 1, dtype=x.dtype)
-    xa, ha = torch.cat([x, ones], 1), torch.cat([hid, ones], 1)  # (n, 7), (n, H + 1)
-    grad = torch.cat([((d * (res @ w2)).T @ xa).reshape(-1), (res.T @ ha).reshape(-1)])
-    p = (d.float()[:, :, None] * xa.float()[:, None, :]).reshape(n, -1)  # (n, 7H)
-    p_p, p_ha = (p.T @ p).double(), (p.T @ ha.float()).double()
-    w_rep = w2.repeat_interleave(N_INPUTS + 1, dim=1)  # (3, 7H): w_out[k, j] for each hidden parameter
-    hidden = p_p * torch.kron(w2.T @ w2, torch.ones(N_INPUTS + 1, N_INPUTS + 1, dtype=x.dtype))
-    cross = torch.cat([p_ha * w_rep[k][:, None] for k in range(N_OUTPUTS)], 1)
-    out = torch.kron(torch.eye(N_OUTPUTS, dtype=x.dtype), ha.T @ ha)
-    jtj = torch.cat([torch.cat([hidden, cross], 1), torch.cat([cross.T, out], 1)], 0)
-    return jtj, grad
-
-
-def _train_lbfgs(
-    theta: torch.Tensor, split: _Split, cfg: InverseMapConfig, max_iterations: int, rng: np.random.Generator
-) -> tuple[torch.Tensor, int, int, StopReason]:
-    """Full-batch L-BFGS, one iteration per validation check."""
-    del rng  # full batch, deterministic
-    h = cfg.n_hidden
-    stopper = _EarlyStopping(theta, split, h, cfg.patience)
-    param = theta.detach().clone().requires_grad_(True)
-    opt = torch.optim.LBFGS(
-        [param],
-        lr=1.0,
-        max_iter=1,
-        max_eval=25,
-        history_size=cfg.lbfgs_history,
-        line_search_fn="strong_wolfe",
-        tolerance_grad=1e-12,
-        tolerance_change=1e-15,
-    )
-
-    def closure() -> torch.Tensor:
-        opt.zero_grad()
-        loss = torch.mean((_forward(param, h, split.x_train) - split.y_train) ** 2)
-        loss.backward()  # type: ignore[no-untyped-call]
-        return loss
-
-    previous = param.detach().clone()
-    for it in range(1, max_iterations + 1):
-        opt.step(closure)  # type: ignore[no-untyped-call]
-        current = param.detach()
-        if torch.equal(current, previous):
-            return stopper.best_theta, it, stopper.best_iteration, StopReason.CONVERGED
-        previous = current.clone()
-        if stopper.should_stop(current, it):
-            return stopper.best_theta, it, stopper.best_iteration, StopReason.VALIDATION
-    return stopper.best_theta, max_iterations, stopper.best_iteration, StopReason.MAX_ITERATIONS
-
-
-def _train_adam(
-    theta: torch.Tensor, split: _Split, cfg: InverseMapConfig, max_iterations: int, rng: np.random.Generator
-) -> tuple[torch.Tensor, int, int, StopReason]:
-    """Adam on minibatches shuffled by `rng`, one epoch per validation check."""
-    h = cfg.n_hidden
-    stopper = _EarlyStopping(theta, split, h, cfg.patience)
-    param = theta.detach().clone().requires_grad_(True)
-    opt = torch.optim.Adam([param], lr=cfg.adam_learning_rate)
-    n, bs = len(split.x_train), cfg.adam_batch_size
-    for it in range(1, max_iterations + 1):
-        order = torch.from_numpy(rng.permutation(n))
-        for start in range(0, n, bs):
-            batch = order[start : start + bs]
-            opt.zero_grad()
-            loss = torch.mean((_forward(param, h, split.x_train[batch]) - split.y_train[batch]) ** 2)
-            loss.backward()  # type: ignore[no-untyped-call]
-            opt.step()
-        if stopper.should_stop(param.detach(), it):
-            return stopper.best_theta, it, stopper.best_iteration, StopReason.VALIDATION
-    return stopper.best_theta, max_iterations, stopper.best_iteration, StopReason.MAX_ITERATIONS
+    return [w1, b1, w2, b2]

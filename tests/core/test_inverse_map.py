@@ -10,6 +10,7 @@ import pytest
 import torch
 
 from g2p import inverse_map as im
+from g2p import inverse_map_training as imt
 from g2p.config import ConfigError
 from g2p.inverse_map import (
     FORMAT_VERSION,
@@ -139,13 +140,13 @@ def test_other_optimizers_fit_too(optimizer: Optimizer) -> None:
 
 def test_gauss_newton_matches_autograd_jacobian() -> None:
     rng = np.random.default_rng(12)
-    theta = im._flatten(im._init_params(4, rng)) + 0.1
+    theta = imt._flatten([torch.from_numpy(p) for p in im._init_params(4, rng)]) + 0.1
     x = torch.tensor(rng.normal(size=(40, 6)))
     y = torch.tensor(rng.normal(size=(40, 3)))
-    jac = torch.autograd.functional.jacobian(lambda t: (im._forward(t, 4, x) - y).reshape(-1), theta)
-    residual = (im._forward(theta, 4, x) - y).reshape(-1)
-    hid, res = im._hidden_and_residual(theta, 4, x, y)
-    jtj, grad = im._gauss_newton(theta, 4, x, hid, res)
+    jac = torch.autograd.functional.jacobian(lambda t: (imt._forward(t, 4, x) - y).reshape(-1), theta)
+    residual = (imt._forward(theta, 4, x) - y).reshape(-1)
+    hid, res = imt._hidden_and_residual(theta, 4, x, y)
+    jtj, grad = imt._gauss_newton(theta, 4, x, hid, res)
     exact = jac.T @ jac
     # The Gram matrix is accumulated in float32 (relative error ~1e-6); the gradient is float64.
     torch.testing.assert_close(jtj, exact, atol=1e-5 * float(exact.abs().max()), rtol=0)
