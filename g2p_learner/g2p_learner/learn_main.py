@@ -9,6 +9,7 @@ feedback arrives and a summary at the end. `--serve` only hosts the actions (for
 from __future__ import annotations
 
 import argparse
+import importlib
 import math
 import sys
 import threading
@@ -137,6 +138,11 @@ def main(args: list[str] | None = None) -> None:
         executor = MultiThreadedExecutor(num_threads=4)
         executor.add_node(node)
         spinner = BackgroundSpinner(executor).start()
+        # Torch takes about a second to import and is needed from the first fit on: import it while the
+        # graph is discovered and settles, rather than before the node exists.
+        threading.Thread(
+            target=importlib.import_module, args=("g2p.inverse_map_training",), daemon=True
+        ).start()
         if client is None:
             stop.wait()
         else:
