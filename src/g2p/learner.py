@@ -106,6 +106,8 @@ class Learner:
         n = cfg.babbling.n_samples if duration_s is None else round(duration_s * cfg.babbling.rate_hz)
         activations = babbling_activations(self._babble_rng, cfg.babbling, n)
         chunk = max(1, round(cfg.babbling_chunk_s * cfg.babbling.rate_hz))
+        if progress is not None:
+            progress(0, n)  # babbling has begun, before the rig's first report
         rig.reset()
         recordings = []
         for start in range(0, n, chunk):
