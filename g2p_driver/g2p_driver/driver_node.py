@@ -93,6 +93,14 @@ class DriverNode(LifecycleNode):
 
     def __init__(self) -> None:
         super().__init__("driver", namespace=DEFAULT_NAMESPACE)
+        # What make_safe and destroy_node use, first: rclpy's shutdown destroys a node whose construction
+        # failed (an invalid parameter) too.
+        self.leg: HardwareLeg | None = None
+        self.fake: FakeRig | None = None
+        self._server: RigServer | None = None
+        self._retired: list[RigServer] = []
+        self._active = False
+        self._log_handler = _RosLogHandler(self)
         self.config = declare_config(self, DriverConfig)
         self.leg_config = declare_config(self, HardwareLegConfig, "leg.")
         self.rig_server_config = declare_config(self, RigServerConfig, "rig.")
@@ -106,13 +114,7 @@ class DriverNode(LifecycleNode):
         document = {**config_as_dict(self.config), "leg": config_as_dict(self.leg_config)}
         document |= {"rig": config_as_dict(self.rig_server_config), "fake": config_as_dict(self.fake_config)}
         self._config_pub = publish_config(self, document)
-        self._log_handler = _RosLogHandler(self)
         logging.getLogger("g2p.hardware").addHandler(self._log_handler)
-        self.leg: HardwareLeg | None = None
-        self.fake: FakeRig | None = None
-        self._server: RigServer | None = None
-        self._retired: list[RigServer] = []
-        self._active = False
         self._fault: Exception | None = None
         self._fault_lock = threading.Lock()
         # The default callback group is mutually exclusive and holds the lifecycle services: a fault

@@ -15,10 +15,13 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
+
+from g2p.config import ConfigError
 
 # The latched `~/config` topic: late subscribers (the recorder) still get the one message.
 CONFIG_QOS = QoSProfile(
@@ -41,7 +44,7 @@ def declare_config(node: Node, cls: type[T], prefix: str = "", exclude: tuple[st
         exclude: fields left at their defaults and not declared (set by the node from other parameters).
 
     Raises:
-        g2p.config.ConfigError: a value is invalid (the message names the field).
+        g2p.config.ConfigError: a value is invalid or of the wrong type (the message names the field).
     """
     docs = _attribute_docs(cls)
     values: dict[str, Any] = {}
@@ -54,9 +57,16 @@ def declare_config(node: Node, cls: type[T], prefix: str = "", exclude: tuple[st
             values[f.name] = declare_config(node, type(default), name + ".")
             continue
         descriptor = ParameterDescriptor(description=docs.get(f.name, ""), read_only=True)
-        node.declare_parameter(name, _to_ros(default), descriptor)
+        try:
+            node.declare_parameter(name, _to_ros(default), descriptor)
+        except InvalidParameterTypeException as err:  # e.g. 0 for a float: ROS does not convert
+            hint = " (a float needs its decimal point: 1.0, not 1)" if isinstance(default, float) else ""
+            raise ConfigError(f"{name}: wrong type{hint}: {err}") from err
         values[f.name] = _from_ros(node.get_parameter(name).value, default)
-    return cls(**values)
+    try:
+        return cls(**values)
+    except ConfigError as err:  # the dataclass names its field; the user writes the parameter's name
+        raise ConfigError(f"{prefix}{err}") from err
 
 
 def config_as_dict(config: object) -> dict[str, Any]:

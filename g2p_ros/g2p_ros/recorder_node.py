@@ -207,7 +207,8 @@ class RecorderNode(Node):
 
     def destroy_node(self) -> None:
         """Finalize the bag, then destroy the node."""
-        self.close_bag()
+        if hasattr(self, "bag"):  # not when construction failed: rclpy's shutdown destroys such nodes too
+            self.close_bag()
         super().destroy_node()
 
 

@@ -71,7 +71,8 @@ class SimNode(Node):
 
     def destroy_node(self) -> None:
         """Stop serving the rig contract, then destroy the node."""
-        self.rig.destroy()
+        if hasattr(self, "rig"):  # not when construction failed: rclpy's shutdown destroys such nodes too
+            self.rig.destroy()
         super().destroy_node()
 
 
