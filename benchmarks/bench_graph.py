@@ -9,7 +9,12 @@
    process's CPU time, for the default real-time-factor cap and without a cap.
 2. The main job: the full G2P run through the graph (sim, recorder, learner as `bringup` starts them)
    against its simulated rig time, the learner's CPU time and peak memory, and the same run in-process
-   (g2p.experiments.run_treadmill on MujocoLeg) for the overhead ratio; medians of `--repeats` runs.
+   (treadmill_in_process.py: run_treadmill on MujocoLeg, a Python process of its own) for the overhead ratios;
+   medians of `--repeats` runs. Two ratios, each with the same boundaries on both sides:
+   - process: from launching `bringup` to its exit, against launching the in-process script to its exit
+     (both include the interpreter, imports, the run and the exit);
+   - run: the learning run alone, from the learner's first babbling feedback to its summary line, against
+     the `run_treadmill` call (torch imported beforehand).
 """
 
 from __future__ import annotations
@@ -36,12 +41,6 @@ from sensor_msgs.msg import JointState
 
 from g2p.babbling import babbling_activations
 from g2p.bags.dataset import load_run
-from g2p.experiments import run_treadmill
-from g2p.learner import Learner, LearnerConfig
-from g2p.limit_cycle import LimitCycleConfig
-from g2p.rig import PlantRig
-from g2p.search import SearchConfig
-from g2p.sim import MujocoLeg, MujocoLegConfig
 from g2p_interfaces.action import RunActivations
 from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
 from g2p_ros import contract
@@ -181,14 +180,24 @@ def rig_throughput(ticks: int, cap: float, clock_period_ticks: int) -> dict[str,
 
 
 def graph_run() -> dict[str, float]:
-    """The main job through the graph: wall time, rig time, the learner's CPU time and peak memory."""
+    """The main job through the graph: wall times, rig time, the learner's CPU time and peak memory."""
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         bringup = subprocess.Popen(
             [installed("g2p_ros", "bringup"), "--bags-dir", tmp, "--run-id", "bench", "--no-report"],
-            stdout=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
             stderr=subprocess.DEVNULL,
+            text=True,
         )
+        lines: list[tuple[float, str]] = []  # (s since launch, line) of the learner's progress output
+
+        def read() -> None:
+            assert bringup.stdout is not None
+            for line in bringup.stdout:
+                lines.append((time.perf_counter() - t0, line))
+
+        reader = threading.Thread(target=read, daemon=True)
+        reader.start()
         learner_pid, learner_cpu, learner_rss = None, 0.0, 0.0
         while bringup.poll() is None:
             if learner_pid is None:
@@ -200,40 +209,65 @@ def graph_run() -> dict[str, float]:
                     pass
             time.sleep(0.2)
         wall = time.perf_counter() - t0
+        reader.join(5.0)
         t_s = load_run(Path(tmp) / "bench").ticks.recording.t_s
+    start = next(t for t, line in lines if line.startswith("babbling"))
+    babbled = next(t for t, line in lines if line.startswith("babbling 100%"))
+    attempts = [t for t, line in lines if line.startswith("attempt")]
+    end = next(t for t, line in lines if line.startswith("| run "))
     return {
         "wall_s": wall,
+        "start_s": start,
+        "run_s": end - start,
+        "babbling_s": babbled - start,
+        "fit_and_first_attempt_s": attempts[0] - babbled,
+        "other_attempts_s": attempts[-1] - attempts[0],
+        "stop_s": wall - end,
         "rig_time_s": float(t_s[-1] - t_s[0]),
         "learner_cpu_s": learner_cpu,
         "learner_peak_rss_mb": learner_rss,
     }
 
 
-def in_process_run() -> float:
-    """Wall time (s) of the same run in-process (run_treadmill on MujocoLeg)."""
+def in_process_run() -> dict[str, float]:
+    """The same run in-process, in a Python process of its own: its wall time and the run's."""
     t0 = time.perf_counter()
-    run_treadmill(
-        Learner(LearnerConfig()), PlantRig(MujocoLeg(MujocoLegConfig())), SearchConfig(), LimitCycleConfig()
-    )
-    return time.perf_counter() - t0
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "treadmill_in_process.py")],
+        check=True,
+        stdout=subprocess.PIPE,
+        text=True,
+    ).stdout
+    return {"wall_s": time.perf_counter() - t0, **json.loads(out.strip().splitlines()[-1])}
 
 
 def full_run(repeats: int) -> dict[str, object]:
     """The main job through the graph and in-process, `repeats` times each; medians and every run."""
     graph = [graph_run() for _ in range(repeats)]
     in_process = [in_process_run() for _ in range(repeats)]
-    wall = float(np.median([g["wall_s"] for g in graph]))
-    rig_time = float(np.median([g["rig_time_s"] for g in graph]))
+
+    def median(runs: list[dict[str, float]], key: str) -> float:
+        return float(np.median([r[key] for r in runs]))
+
+    wall, rig_time = median(graph, "wall_s"), median(graph, "rig_time_s")
     return {
         "graph_wall_s": wall,
+        "graph_start_s": median(graph, "start_s"),
+        "graph_run_s": median(graph, "run_s"),
+        "graph_babbling_s": median(graph, "babbling_s"),
+        "graph_fit_and_first_attempt_s": median(graph, "fit_and_first_attempt_s"),
+        "graph_other_attempts_s": median(graph, "other_attempts_s"),
+        "graph_stop_s": median(graph, "stop_s"),
         "rig_time_s": rig_time,
         "real_time_factor": rig_time / wall,
-        "in_process_wall_s": float(np.median(in_process)),
-        "overhead": wall / float(np.median(in_process)),
-        "learner_cpu_s": float(np.median([g["learner_cpu_s"] for g in graph])),
+        "in_process_wall_s": median(in_process, "wall_s"),
+        "in_process_run_s": median(in_process, "run_s"),
+        "overhead_process": wall / median(in_process, "wall_s"),
+        "overhead_run": median(graph, "run_s") / median(in_process, "run_s"),
+        "learner_cpu_s": median(graph, "learner_cpu_s"),
         "learner_peak_rss_mb": float(np.max([g["learner_peak_rss_mb"] for g in graph])),
         "graph_runs": graph,
-        "in_process_runs_wall_s": in_process,
+        "in_process_runs": in_process,
     }
 
 
