@@ -116,6 +116,8 @@ def test_babble_attempts_learn_and_track_through_the_graph(graph: LearnerClient)
     assert learned.status == GoalStatus.STATUS_SUCCEEDED
     assert learned.result.exploration_attempts == 2 and not learned.result.crossed_threshold
     assert [f.feedback.attempt for f in feedback if f.feedback.phase != "babbling"] == [1, 2]
+    babbling = [f.feedback.babbling_progress for f in feedback if f.feedback.phase == "babbling"]
+    assert babbling[0] == 0.0 and babbling[-1] == 1.0 and babbling == sorted(babbling)  # from its start
     tracked = graph.run(graph.track, Track.Goal(mode=Track.Goal.MODE_REFINE_ONE, refinements=2))
     assert tracked.status == GoalStatus.STATUS_SUCCEEDED and len(tracked.result.attempt_mse_deg2) == 3
 
