@@ -7,6 +7,10 @@ Runs, for each seed, on a fresh simulated rig (MujocoLeg) with the default confi
   air: babbling in the air, one random trajectory attempted and refined 5 times (paper Fig 5a);
   generalization: babbling in the air, refinement on 30 random trajectories, then the babbling-only and
       the refined map, both fixed, on 30 unseen trajectories (paper Fig 5b).
+  bound (only when asked, `--experiments bound`): what the network can reach on the generalization test
+      trajectories when it is fitted on their own data, a bound for the generalization figure: the
+      babbling-only map plays the 30 test trajectories; a map fitted afresh on babbling + those attempts
+      plays them again; a third map, fitted on all of it, plays them once more.
 Writes results.json and figures into --out, and prints a markdown table beside the paper's figures.
 
 Variants for measurements (docs/ALGORITHM.md, "Tracking on the simulated rig"):
@@ -29,7 +33,10 @@ from typing import Any
 
 import numpy as np
 
+from g2p.attempt import run_attempt
 from g2p.experiments import generalization, random_features, refine_one_trajectory, run_treadmill
+from g2p.inverse_map import InverseMap
+from g2p.kinematics import recording_pairs
 from g2p.learner import Learner, LearnerConfig
 from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig
 from g2p.rig import PlantRig
@@ -149,6 +156,27 @@ def general(seed: int, setup: Setup = Setup()) -> dict[str, Any]:
     }
 
 
+def bound(seed: int, setup: Setup = Setup()) -> dict[str, Any]:
+    """The generalization test trajectories tracked by maps fitted on their own data (see the docstring)."""
+    learner, rig, cycle = _air_learner(seed, setup)
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(4)[3])
+    _train, test = random_features(rng, cycle, 30), random_features(rng, cycle, 30)  # as `general` draws
+    pre = learner.config.preprocess
+    x, y = learner.dataset.arrays()
+    inverse_map, mse = learner.frozen_map(), []
+    for round_ in range(3):
+        outcomes = [run_attempt(rig, inverse_map, f, cycle, learner.lead_ticks) for f in test]
+        mse.append([o.tracking.mse_deg2 for o in outcomes])
+        if round_ == 2:
+            break
+        pairs = [recording_pairs(o.recording, pre, pre.transition_fraction) for o in outcomes]
+        x = np.vstack([x, *(p.kinematics for p in pairs)])
+        y = np.vstack([y, *(p.activation for p in pairs)])
+        inverse_map = InverseMap(learner.inverse_map.config)  # fresh weights, a full fit
+        inverse_map.fit(x, y, np.random.default_rng([seed, round_]))
+    return {"seed": seed, "mse_deg2_by_round": mse}
+
+
 def summarize(results: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
     """The figures to compare with the paper's."""
     out: dict[str, Any] = {}
@@ -187,6 +215,12 @@ def summarize(results: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
         out["generalization_reduction_per_seed_quartiles"] = np.percentile(
             [r["reduction"] for r in g], [25, 75]
         ).tolist()
+    b = results.get("bound", [])
+    if b:
+        rounds = [np.concatenate([r["mse_deg2_by_round"][k] for r in b]) for k in range(3)]
+        out["bound_median_mse_by_round_deg2"] = [float(np.median(m)) for m in rounds]
+        out["bound_reduction_by_round"] = [float(1 - np.median(m) / np.median(rounds[0])) for m in rounds[1:]]
+        out["bound_share_improved_by_round"] = [float(np.mean(m < rounds[0])) for m in rounds[1:]]
     return out
 
 
@@ -263,6 +297,7 @@ def main() -> None:
         "treadmill": partial(treadmill, setup=setup),
         "air": partial(air, setup=setup),
         "generalization": partial(general, setup=setup),
+        "bound": partial(bound, setup=setup),
     }
     results: dict[str, list[dict[str, Any]]] = {}
     wall_s: dict[str, float] = {}
