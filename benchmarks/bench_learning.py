@@ -15,6 +15,7 @@ Writes results.json and figures into --out, and prints a markdown table beside t
 
 Variants for measurements (docs/ALGORITHM.md, "Tracking on the simulated rig"):
     --set preprocess.command_lead_ticks=2 --set inverse_map.normalization=zscore   (LearnerConfig fields)
+    --set "cycle.radius_rad=(-0.8, 0.75)"   (LimitCycleConfig fields: centre, spoke scale, period)
     --model path/to/leg.xml     (another MJCF for the simulated rig)
     --train 15                  (generalization training trajectories; the paper's 30 by default)
 """
@@ -59,7 +60,8 @@ class Setup:
     """What a benchmark run varies from the defaults.
 
     Attributes:
-        overrides: (section, field, value) for LearnerConfig: section "preprocess" or "inverse_map".
+        overrides: (section, field, value): section "preprocess" or "inverse_map" for LearnerConfig,
+            "cycle" for the limit cycles (LimitCycleConfig).
         model_path: MJCF of the simulated rig; "" = the packaged leg.
         n_train: generalization training trajectories (paper: 30).
     """
@@ -72,8 +74,16 @@ class Setup:
         """The default LearnerConfig with this setup's overrides."""
         cfg = LearnerConfig(seed=seed)
         for section, name, value in self.overrides:
-            cfg = replace(cfg, **{section: replace(getattr(cfg, section), **{name: value})})
+            if section != "cycle":
+                cfg = replace(cfg, **{section: replace(getattr(cfg, section), **{name: value})})
         return cfg
+
+    def cycle(self, bounds: tuple[float, float] | None = None) -> LimitCycleConfig:
+        """The default LimitCycleConfig with this setup's overrides, and feature bounds if given."""
+        fields = {name: value for section, name, value in self.overrides if section == "cycle"}
+        if bounds is not None:
+            fields.update(feature_low=bounds[0], feature_high=bounds[1])
+        return LimitCycleConfig(**fields)
 
     def plant(self, seed: int, carriage_height_m: float | None = None) -> PlantRig:
         """A fresh simulated rig for one seed."""
@@ -87,9 +97,9 @@ def parse_override(text: str) -> tuple[str, str, Any]:
     """'preprocess.command_lead_ticks=2' -> ('preprocess', 'command_lead_ticks', 2)."""
     key, sep, raw = text.partition("=")
     section, dot, name = key.partition(".")
-    if not sep or not dot or section not in ("preprocess", "inverse_map"):
+    if not sep or not dot or section not in ("preprocess", "inverse_map", "cycle"):
         raise argparse.ArgumentTypeError(
-            f"expected preprocess.FIELD=VALUE or inverse_map.FIELD=VALUE, got {text!r}"
+            f"expected preprocess.FIELD=VALUE, inverse_map.FIELD=VALUE or cycle.FIELD=VALUE, got {text!r}"
         )
     try:
         value = ast.literal_eval(raw)
@@ -102,7 +112,7 @@ def treadmill(seed: int, setup: Setup = Setup()) -> dict[str, Any]:
     """One treadmill run (paper Fig 4)."""
     t0 = time.perf_counter()
     learner = Learner(setup.learner_config(seed))
-    cycle = LimitCycleConfig()
+    cycle = setup.cycle()
     search = SearchConfig()
     result = run_treadmill(learner, setup.plant(seed), search, cycle)
     wall = time.perf_counter() - t0
@@ -128,7 +138,7 @@ def _air_learner(seed: int, setup: Setup) -> tuple[Learner, PlantRig, LimitCycle
     learner = Learner(setup.learner_config(seed))
     rig = setup.plant(seed, AIR_CARRIAGE_HEIGHT_M)
     learner.babble(rig)
-    cycle = replace(LimitCycleConfig(), feature_low=AIR_FEATURE_BOUNDS[0], feature_high=AIR_FEATURE_BOUNDS[1])
+    cycle = setup.cycle(AIR_FEATURE_BOUNDS)
     return learner, rig, cycle
 
 
@@ -286,13 +296,18 @@ def main() -> None:
         type=parse_override,
         default=[],
         metavar="SECTION.FIELD=VALUE",
-        help="override a LearnerConfig field, e.g. preprocess.command_lead_ticks=2 (repeatable)",
+        help="override a LearnerConfig or LimitCycleConfig field, e.g. preprocess.command_lead_ticks=2 or "
+        "cycle.centre_rad=(0.0,-0.75) (repeatable)",
     )
     parser.add_argument("--model", default="", help="MJCF of the simulated rig (default: the packaged leg)")
     parser.add_argument("--train", type=int, default=30, help="generalization training trajectories")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     setup = Setup(tuple(args.overrides), args.model, args.train)
+    try:  # a bad override fails here, with its name, not in a worker
+        setup.learner_config(0), setup.cycle()
+    except (TypeError, ValueError) as err:
+        parser.error(str(err))
     runners = {
         "treadmill": partial(treadmill, setup=setup),
         "air": partial(air, setup=setup),
