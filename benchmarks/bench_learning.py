@@ -305,7 +305,8 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     setup = Setup(tuple(args.overrides), args.model, args.train)
     try:  # a bad override fails here, with its name, not in a worker
-        setup.learner_config(0), setup.cycle()
+        setup.learner_config(0)
+        setup.cycle()
     except (TypeError, ValueError) as err:
         parser.error(str(err))
     runners = {
