@@ -77,6 +77,11 @@ class LifecyclePeer(RosPeer):
         with self.lock:
             self.applied.append(list(msg.activation))
 
+    def count_applied(self, activation: list[float]) -> int:
+        """How many ticks applied exactly `activation` (3 values)."""
+        with self.lock:
+            return sum(tick == activation for tick in self.applied)
+
     def _on_diag(self, msg: DiagnosticArray) -> None:
         with self.lock:
             self.diagnostics.append(msg)
@@ -219,7 +224,7 @@ def test_persistent_fault_drives_the_node_to_error_processing_with_outputs_off(
     assert peer.transition(Transition.TRANSITION_ACTIVATE), driver.log()
     handle = peer.play(np.tile([0.6, 0.15, 0.6], (20 * 78, 1)))
     assert handle.accepted
-    wait_until(lambda: len(peer.applied) > 30, 10.0, "the sequence to play")
+    wait_until(lambda: peer.count_applied([0.6, 0.15, 0.6]) > 30, 10.0, "the sequence to play")
     # The distal encoder's frames fail their parity check from now on.
     (state_dir / "faults.json").write_text(
         json.dumps([{"kind": "encoder_parity", "target": "distal", "count": -1}])
@@ -252,7 +257,7 @@ def test_deactivate_during_a_sequence_aborts_it_and_activating_again_serves_agai
     assert peer.transition(Transition.TRANSITION_CONFIGURE), driver.log()
     assert peer.transition(Transition.TRANSITION_ACTIVATE), driver.log()
     handle = peer.play(np.tile([0.15, 0.9, 0.15], (20 * 78, 1)))
-    wait_until(lambda: len(peer.applied) > 30, 10.0, "the sequence to play")
+    wait_until(lambda: peer.count_applied([0.15, 0.9, 0.15]) > 30, 10.0, "the sequence to play")
     assert peer.transition(Transition.TRANSITION_DEACTIVATE), driver.log()
     assert peer.wait(handle.get_result_async(), 30.0).status == GoalStatus.STATUS_ABORTED
     assert at_baseline(outputs(state_dir))
@@ -271,7 +276,8 @@ def test_signals_while_playing_leave_the_outputs_off(
     try:
         handle = peer.play(np.tile([0.9, 0.9, 0.9], (20 * 78, 1)))
         assert handle.accepted
-        wait_until(lambda: len(peer.applied) > 30, 30.0, "the sequence to play")
+        # Count the sequence's own ticks: the driver publishes baseline ticks before the goal starts too.
+        wait_until(lambda: peer.count_applied([0.9, 0.9, 0.9]) > 30, 30.0, "the sequence to play")
         assert outputs(state_dir)["activation"][0] > 0.8
     finally:
         code = proc.stop(sig)
