@@ -23,7 +23,7 @@ from rclpy.utilities import remove_ros_args
 from g2p.config import ConfigError
 from g2p_interfaces.action import Learn
 from g2p_learner.learner_node import LearnerNode
-from g2p_ros.contract import ServerWatch, wait_all
+from g2p_ros.contract import ServerWatch, action_name, wait_all
 from g2p_ros.signals import init_with_stop_event
 from g2p_ros.spinner import BackgroundSpinner, wait_for_future
 
@@ -134,7 +134,7 @@ def main(args: list[str] | None = None) -> None:
     try:
         node = LearnerNode()
         # Before spinning starts: rclpy's ActionClient joins the node half-built (ros2/rclpy#1589).
-        client = None if options.serve else ActionClient(node, Learn, "learn")
+        client = None if options.serve else ActionClient(node, Learn, action_name(node, "learn"))
         executor = MultiThreadedExecutor(num_threads=4)
         executor.add_node(node)
         spinner = BackgroundSpinner(executor).start()

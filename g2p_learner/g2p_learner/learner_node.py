@@ -36,7 +36,7 @@ from g2p.rig import ProgressCallback, RigCancelled, RigError
 from g2p.search import SearchConfig
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_interfaces.msg import InverseMapWeights, LearnerEvent, NamedArray
-from g2p_ros.contract import DEFAULT_NAMESPACE, RIG_SAMPLE_TOPICS, ServerWatch, wait_all
+from g2p_ros.contract import DEFAULT_NAMESPACE, RIG_SAMPLE_TOPICS, ServerWatch, action_name, wait_all
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_client import RigClient
 
@@ -144,7 +144,7 @@ class LearnerNode(Node):
             ActionServer(
                 self,
                 action,
-                name,
+                action_name(self, name),
                 execute_callback=self._guarded(action, execute),
                 goal_callback=self._goal_callback(validate),
                 cancel_callback=self._on_cancel,

@@ -4,6 +4,7 @@ import threading
 import time
 from collections.abc import Callable, Iterable
 
+from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 # Topics and services, relative to the node's namespace (default /leg) so that remapping swaps rigs.
@@ -41,6 +42,17 @@ CLOCK_QOS = QoSProfile(
     reliability=ReliabilityPolicy.BEST_EFFORT,
     durability=DurabilityPolicy.VOLATILE,
 )
+
+
+def action_name(node: Node, name: str) -> str:
+    """The fully qualified name of action `name` for `node`, with the node's remap rules applied.
+
+    Create every action client and server with it: Jazzy's rcl_action applies no remap rules to action
+    names (ros2/rcl#1170 came after Jazzy), so `-r run_activations:=/pi/leg/run_activations` would be
+    ignored there. A name resolved here is not remapped again by distributions that do remap actions.
+    """
+    return node.resolve_topic_name(name)
+
 
 # A client that has just discovered a server must give the server time to discover the client's reply
 # reader too: rmw_fastrtps drops a reply whose reader has not matched within 100 ms (ros2/rmw_fastrtps#390),

@@ -39,11 +39,10 @@ class RigClient:
         self._node = node
         self._server_timeout_s = server_timeout_s
         group = ReentrantCallbackGroup()
-        self._action = ActionClient(node, RunActivations, contract.RUN_ACTIVATIONS, callback_group=group)
+        action = contract.action_name(node, contract.RUN_ACTIVATIONS)
+        self._action = ActionClient(node, RunActivations, action, callback_group=group)
         self._reset = node.create_client(Trigger, contract.RESET, callback_group=group)
-        self._action_watch = contract.ServerWatch(
-            node.resolve_topic_name(contract.RUN_ACTIVATIONS), self._action.server_is_ready
-        )
+        self._action_watch = contract.ServerWatch(action, self._action.server_is_ready)
         self._reset_watch = contract.ServerWatch(self._reset.srv_name, self._reset.service_is_ready)
 
     @property

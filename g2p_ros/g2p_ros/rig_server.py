@@ -185,7 +185,7 @@ class RigServer:
         self._action = ActionServer(
             node,
             RunActivations,
-            contract.RUN_ACTIVATIONS,
+            contract.action_name(node, contract.RUN_ACTIVATIONS),
             execute_callback=self._execute,
             goal_callback=self._on_goal,
             cancel_callback=self._on_cancel,
