@@ -30,7 +30,7 @@ from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 from rclpy.utilities import remove_ros_args
 
 from g2p.bags.runs import new_run_id
-from g2p_ros.graph import Graph, GraphError, NodeSpec, load_graph
+from g2p_ros.graph import Graph, GraphError, NodeSpec, load_graph, profile_environment
 from g2p_ros.signals import init_with_stop_event
 
 STOP_TIMEOUT_S = 20.0
@@ -75,7 +75,7 @@ def _node_environment() -> dict[str, str]:
     """The nodes' environment: ours, with the graph's Fast DDS profile unless one is set already."""
     env = dict(os.environ)
     profile = Path(get_package_share_directory("g2p_ros")) / "config" / "fastdds_discovery.xml"
-    env.setdefault("FASTDDS_DEFAULT_PROFILES_FILE", str(profile))
+    env.update(profile_environment(env, profile))
     return env
 
 

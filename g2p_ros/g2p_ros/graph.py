@@ -9,8 +9,34 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+from xml.etree import ElementTree
 
 import yaml
+from ament_index_python.packages import get_package_share_directory
+
+# The variables naming Fast DDS's XML profiles file: 3.x (Kilted and later) reads the first, 2.x (Jazzy)
+# the second. Each reads only its own; setting both makes 3.x load the file twice and reject its profile.
+PROFILE_VARIABLES = ("FASTDDS_DEFAULT_PROFILES_FILE", "FASTRTPS_DEFAULT_PROFILES_FILE")
+
+
+def profile_variable() -> str:
+    """The variable the installed Fast DDS reads its profiles file from.
+
+    rmw_fastrtps 9 and later (Kilted on) are built on Fast DDS 3; rmw_fastrtps 8 (Jazzy) on Fast DDS 2.
+    """
+    package_xml = Path(get_package_share_directory("rmw_fastrtps_cpp")) / "package.xml"
+    version = ElementTree.parse(package_xml).getroot().findtext("version", "0")
+    return PROFILE_VARIABLES[0] if int(version.split(".")[0]) >= 9 else PROFILE_VARIABLES[1]
+
+
+def profile_environment(environ: dict[str, str], profile: Path) -> dict[str, str]:
+    """The variable to add to `environ` so that the installed Fast DDS loads `profile`.
+
+    Nothing when the user named a profiles file already (in either variable): theirs is used.
+    """
+    if any(environ.get(name) for name in PROFILE_VARIABLES):
+        return {}
+    return {profile_variable(): str(profile)}
 
 
 class GraphError(ValueError):

@@ -7,18 +7,19 @@ them; the learner begins only once the recorder hears the rig (its `recorder_nod
 `bringup`, launch does not write the report; run `ros2 run g2p_ros report bags/<run_id>` after.
 """
 
+import os
 from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, OpaqueFunction, Shutdown
+from launch.actions import DeclareLaunchArgument, OpaqueFunction, SetEnvironmentVariable, Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from g2p.bags.runs import new_run_id
-from g2p_ros.graph import load_graph
+from g2p_ros.graph import load_graph, profile_environment
 
 
 def _nodes(context, *args, **kwargs):
@@ -49,9 +50,12 @@ def _nodes(context, *args, **kwargs):
 
 def generate_launch_description():
     """The graph of config/graph.yaml as launch actions."""
-    default_graph = str(Path(get_package_share_directory("g2p_ros")) / "config" / "graph.yaml")
+    share = Path(get_package_share_directory("g2p_ros"))
+    default_graph = str(share / "config" / "graph.yaml")
+    profile = profile_environment(dict(os.environ), share / "config" / "fastdds_discovery.xml")
     return LaunchDescription(
         [
+            *(SetEnvironmentVariable(name, value) for name, value in profile.items()),
             DeclareLaunchArgument(
                 "graph", default_value=default_graph, description="graph description (YAML)"
             ),

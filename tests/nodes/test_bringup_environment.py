@@ -1,4 +1,5 @@
-"""bringup starts its nodes with the graph's Fast DDS profile, which Fast DDS accepts."""
+"""bringup starts its nodes with the graph's Fast DDS profile, which Fast DDS (2.x on Jazzy, 3.x on Kilted)
+reads and accepts."""
 
 from __future__ import annotations
 
@@ -10,30 +11,45 @@ from pathlib import Path
 import pytest
 
 from g2p_ros.bringup_main import _node_environment
+from g2p_ros.graph import PROFILE_VARIABLES, profile_variable
 
-PROFILE_VARIABLE = "FASTDDS_DEFAULT_PROFILES_FILE"
+PROBE = "import rclpy; rclpy.init(); rclpy.create_node('profile_probe').destroy_node(); rclpy.shutdown()"
 
 
-def test_the_profile_is_set_unless_the_user_set_one(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delenv(PROFILE_VARIABLE, raising=False)
-    profile = Path(_node_environment()[PROFILE_VARIABLE])
+def _probe(env: dict[str, str]) -> str:
+    """What a node's start in `env` prints (Fast DDS 2.x reports XML errors on stdout, 3.x on stderr)."""
+    proc = subprocess.run([sys.executable, "-c", PROBE], env=env, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    return proc.stdout + proc.stderr
+
+
+@pytest.fixture
+def no_user_profile(monkeypatch: pytest.MonkeyPatch) -> None:
+    for name in PROFILE_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+
+
+@pytest.mark.usefixtures("no_user_profile")
+def test_the_profile_is_set_in_the_installed_fast_dds_variable_unless_the_user_set_one(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    env = _node_environment()
+    assert [name for name in PROFILE_VARIABLES if name in env] == [profile_variable()]
+    profile = Path(env[profile_variable()])
     assert profile.name == "fastdds_discovery.xml" and profile.is_file()
-    monkeypatch.setenv(PROFILE_VARIABLE, "/elsewhere/profiles.xml")
-    assert _node_environment()[PROFILE_VARIABLE] == "/elsewhere/profiles.xml"
+    for name in PROFILE_VARIABLES:  # a user's file under either name is kept, and nothing is added
+        monkeypatch.setenv(name, "/elsewhere/profiles.xml")
+        env = _node_environment()
+        assert [n for n in PROFILE_VARIABLES if n in env] == [name]
+        assert env[name] == "/elsewhere/profiles.xml"
+        monkeypatch.delenv(name)
 
 
-def test_fast_dds_loads_the_profile_without_errors(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A node started with the profile comes up, and Fast DDS reports no XML error."""
-    monkeypatch.delenv(PROFILE_VARIABLE, raising=False)
-    code = "import rclpy; rclpy.init(); rclpy.create_node('profile_probe').destroy_node(); rclpy.shutdown()"
-    proc = subprocess.run(
-        [sys.executable, "-c", code], env=_node_environment(), capture_output=True, text=True, timeout=60
-    )
-    assert proc.returncode == 0, proc.stderr
-    assert "XMLPARSER" not in proc.stderr and "Error" not in proc.stderr, proc.stderr
-    # The same check catches a broken profile: Fast DDS reports it on stderr.
-    broken = dict(_node_environment(), **{PROFILE_VARIABLE: os.devnull})
-    proc = subprocess.run(
-        [sys.executable, "-c", code], env=broken, capture_output=True, text=True, timeout=60
-    )
-    assert "XMLPARSER" in proc.stderr
+@pytest.mark.usefixtures("no_user_profile")
+def test_fast_dds_loads_the_profile_without_errors() -> None:
+    """A node started with the profile comes up, and Fast DDS reports no XML error or warning."""
+    output = _probe(_node_environment())
+    assert "XMLPARSER" not in output and "Error" not in output and "WARN" not in output, output
+    # The same check catches a broken profile: the file is really read on this distribution.
+    broken = dict(_node_environment(), **{profile_variable(): os.devnull})
+    assert "XMLPARSER" in _probe(broken)
