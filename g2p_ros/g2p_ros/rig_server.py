@@ -23,7 +23,9 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
@@ -64,6 +66,9 @@ class RigServerConfig:
         clock_period_ticks: ticks between /clock messages (when the rig publishes /clock); the last tick
             before the rig idles and every reset are always published, so the clock is never behind a
             finished sequence. Every /clock message costs each use_sim_time node an executor callback.
+        flush_timeout_s: on stopping, how long to wait for every subscriber (the recorder) to acknowledge
+            the ticks already published before the publishers are destroyed (s). A reliable sample lost
+            on the way is resent only while its publisher exists.
     """
 
     watchdog_ticks: int = 3
@@ -73,11 +78,13 @@ class RigServerConfig:
     log_period_s: float = 1.0
     fast_max_real_time_factor: float = 60.0
     clock_period_ticks: int = 1
+    flush_timeout_s: float = 5.0
 
     def __post_init__(self) -> None:
         require(
             self.clock_period_ticks >= 1, "clock_period_ticks", f"must be >= 1, got {self.clock_period_ticks}"
         )
+        require(self.flush_timeout_s >= 0, "flush_timeout_s", f"must be >= 0, got {self.flush_timeout_s}")
 
 
 @dataclass
@@ -221,16 +228,40 @@ class RigServer:
             self._outbox.put(None)  # after the ticks already queued
             self._publisher.join(timeout=5.0)
         self._gate.stop()
+        self._flush()
+
+    def _flush(self) -> None:
+        """Wait until every subscriber acknowledged every published tick, up to `flush_timeout_s`."""
+        if not self._node.context.ok():
+            self._log.warning("the ROS context is shut down: ticks not yet acknowledged may be lost")
+            return
+        start = time.monotonic()
+        deadline = start + self._config.flush_timeout_s
+        unacked = [
+            p.topic_name
+            for p in self._sample_publishers
+            if not p.wait_for_all_acked(Duration(seconds=max(0.0, deadline - time.monotonic())))
+        ]
+        if unacked:
+            self._log.warning(
+                f"stopping with ticks not acknowledged after {self._config.flush_timeout_s:g} s on "
+                f"{', '.join(unacked)}: a subscriber (the recorder?) may miss them"
+            )
+        elif time.monotonic() - start > 0.01:
+            self._log.info(
+                f"waited {time.monotonic() - start:.2f} s for subscribers to acknowledge the last ticks"
+            )
+
+    @property
+    def _sample_publishers(self) -> tuple[Publisher, ...]:
+        return (self._pub_joints, self._pub_treadmill, self._pub_power, self._pub_applied)
 
     def destroy(self) -> None:
         """Stop and destroy the ROS entities this server created."""
         self.stop()
         self._action.destroy()
         for entity in (
-            self._pub_joints,
-            self._pub_treadmill,
-            self._pub_power,
-            self._pub_applied,
+            *self._sample_publishers,
             self._pub_clock,
             self._pub_diag,
         ):

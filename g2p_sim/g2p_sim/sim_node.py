@@ -15,6 +15,7 @@ from g2p.sim import MujocoLeg, MujocoLegConfig
 from g2p_ros.contract import DEFAULT_NAMESPACE
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
+from g2p_ros.signals import init_with_stop_event
 
 
 class TimeMode(enum.Enum):
@@ -78,13 +79,14 @@ class SimNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Entry point of `ros2 run g2p_sim sim`."""
-    rclpy.init(args=args)
+    stop = init_with_stop_event(args)  # the context stays valid until the rig has stopped and flushed
     node = None
     try:
         node = SimNode()
         executor = MultiThreadedExecutor(num_threads=3)
         executor.add_node(node)
-        executor.spin()
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
     except ConfigError as err:
         print(f"g2p_sim: invalid parameter {err}", file=sys.stderr)
         sys.exit(2)
