@@ -1,15 +1,19 @@
 # The two commands of the README. Both set up everything themselves (scripts/bootstrap).
 .PHONY: run test lint bootstrap
 
+# The ROS suites run on ROS 2 Jazzy (the Raspberry Pi's distribution) as well as on Kilted.
+ROS_SUITES := tests/interfaces tests/nodes tests/system
+
 # The main job: a full G2P learning run on the simulated rig (fast time), recorded to bags/<run-id>/
 # with its report. Extra bring-up options: make run ARGS="--set learner.learner.seed=3"
 run:
-	scripts/with-env install/g2p_ros/lib/g2p_ros/bringup $(ARGS)
+	scripts/with-env scripts/ros2-run g2p_ros bringup $(ARGS)
 
-# Lint, then every test: core, simulator, hardware on fake buses, bags, nodes, and the whole graph in
-# real processes.
+# Lint, then every test on ROS 2 Kilted (core, simulator, hardware on fake buses, bags, nodes, and the
+# whole graph in real processes), then the interface, node and system tests on ROS 2 Jazzy.
 test: lint
 	scripts/with-env python -m pytest tests
+	G2P_ROS_DISTRO=jazzy scripts/with-env python -m pytest $(ROS_SUITES)
 
 # ruff (check and format) on everything, mypy --strict on the core library.
 lint:
@@ -17,3 +21,4 @@ lint:
 
 bootstrap:
 	scripts/bootstrap
+	G2P_ROS_DISTRO=jazzy scripts/bootstrap

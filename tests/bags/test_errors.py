@@ -10,8 +10,7 @@ import pytest
 
 from g2p.bags import BagError, BagReader, BagReadError, load_run, read_metadata
 from tests.bags.bagdata import SyntheticRun
-
-BIN = Path(__file__).resolve().parents[2] / "install" / "g2p_ros" / "lib" / "g2p_ros"
+from tests.nodes.rosproc import executable
 
 
 @pytest.fixture
@@ -102,7 +101,9 @@ def test_report_cli_one_line_and_exit_2(bag: Path) -> None:
     mcap = mcap_of(bag)
     with mcap.open("r+b") as f:
         f.truncate(mcap.stat().st_size // 2)
-    done = subprocess.run([str(BIN / "report"), str(bag)], capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [str(executable("g2p_ros", "report")), str(bag)], capture_output=True, text=True, timeout=120
+    )
     assert done.returncode == 2
     lines = done.stderr.splitlines()
     assert len(lines) == 1, done.stderr

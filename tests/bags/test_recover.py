@@ -20,10 +20,10 @@ from g2p.bags import (
     recover_bag,
 )
 from tests.bags.bagdata import SAMPLE_QOS, Messages
+from tests.nodes.rosproc import executable
 
 CHUNKS = 3
 PER_CHUNK = 1000
-EXECUTABLE = Path(__file__).resolve().parents[2] / "install" / "g2p_ros" / "lib" / "g2p_ros" / "recover_bag"
 
 
 def payloads(messages: Messages, n: int) -> list[tuple[str, int, bytes]]:
@@ -195,16 +195,23 @@ def test_no_storage_file(tmp_path: Path) -> None:
 
 def test_cli_recovers_and_reports(tmp_path: Path, registry: TypeRegistry, messages: Messages) -> None:
     crashed, kept, _ = crashed_bag(tmp_path, registry, messages)
-    done = subprocess.run([str(EXECUTABLE), str(crashed)], capture_output=True, text=True, timeout=60)
+    done = subprocess.run(
+        [str(executable("g2p_ros", "recover_bag")), str(crashed)], capture_output=True, text=True, timeout=60
+    )
     assert done.returncode == 0, done.stderr
     assert f"recovered {len(kept)} messages on 2 topics from {CHUNKS} complete chunks" in done.stdout
-    again = subprocess.run([str(EXECUTABLE), str(crashed)], capture_output=True, text=True, timeout=60)
+    again = subprocess.run(
+        [str(executable("g2p_ros", "recover_bag")), str(crashed)], capture_output=True, text=True, timeout=60
+    )
     assert again.returncode == 0 and "complete, nothing to recover" in again.stdout
 
 
 def test_cli_error_is_one_line_and_exit_2(tmp_path: Path) -> None:
     done = subprocess.run(
-        [str(EXECUTABLE), str(tmp_path / "nope")], capture_output=True, text=True, timeout=60
+        [str(executable("g2p_ros", "recover_bag")), str(tmp_path / "nope")],
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert done.returncode == 2
     assert done.stderr.splitlines() == [f"recover_bag: error: {tmp_path / 'nope'}: not a directory"]

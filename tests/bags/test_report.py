@@ -14,8 +14,8 @@ from g2p.bags import BagError, BagWriter, TopicSpec, TypeRegistry, load_run, wri
 from g2p.bags.report import FIGURES
 from g2p.bags.summary import best_so_far, find_joint_limits, find_threshold, near_limit_fraction
 from tests.bags.bagdata import Messages, SyntheticRun
+from tests.nodes.rosproc import executable
 
-BIN = Path(__file__).resolve().parents[2] / "install" / "g2p_ros" / "lib" / "g2p_ros"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
@@ -117,7 +117,9 @@ def test_best_so_far_ignores_nan() -> None:
 
 
 def test_report_cli_writes_everything(run: SyntheticRun) -> None:
-    done = subprocess.run([str(BIN / "report"), str(run.path)], capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [str(executable("g2p_ros", "report")), str(run.path)], capture_output=True, text=True, timeout=120
+    )
     assert done.returncode == 0, done.stderr
     assert f"summary: {run.path / 'summary.json'}" in done.stdout
     assert all((run.path / "report" / name).is_file() for name in FIGURES)

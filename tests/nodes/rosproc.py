@@ -1,6 +1,6 @@
 """Helpers for tests that run the installed executables as a user does, and talk to them over ROS 2.
 
-`NodeProcess` starts `install/<pkg>/lib/<pkg>/<exe>` (the file `ros2 run <pkg> <exe>` executes) and
+`NodeProcess` starts `<install>/<pkg>/lib/<pkg>/<exe>` (the file `ros2 run <pkg> <exe>` executes) and
 stops it with SIGINT; `RosPeer` is an rclpy node in its own Context, spun in a background thread, for
 the test's side of the conversation.
 """
@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
+from ament_index_python.packages import get_package_prefix
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -27,8 +28,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def executable(package: str, name: str) -> Path:
-    """The installed executable `ros2 run <package> <name>` would run."""
-    path = ROOT / "install" / package / "lib" / package / name
+    """The installed executable `ros2 run <package> <name>` would run, in the sourced environment."""
+    path = Path(get_package_prefix(package)) / "lib" / package / name
     assert path.is_file(), f"{path} is not installed (run scripts/bootstrap)"
     return path
 

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
+from ament_index_python.packages import get_package_share_directory
 
 from g2p.hardware.fakes import FakeRigConfig
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, TREADMILL_CARRIAGE_HEIGHT_M, MujocoLegConfig
 from g2p_ros.graph import load_graph
-from tests.nodes.rosproc import ROOT
 
-GRAPH = ROOT / "install" / "g2p_ros" / "share" / "g2p_ros" / "config" / "graph.yaml"
+GRAPH = Path(get_package_share_directory("g2p_ros")) / "config" / "graph.yaml"
 SUBSTITUTIONS = {"run_id": "test-run", "bags_dir": "bags"}
 
 

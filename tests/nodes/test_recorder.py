@@ -1,14 +1,11 @@
 """The recorder in real processes: the installed `record` executable against a fake rig publisher process.
 
-Run as a script (`python test_recorder.py publish ...`), this file is the fake rig: it publishes the rig
-contract's topics with their real message types and QoS (plus /clock, /diagnostics, the learner's
-events and inverse maps, and a latched `~/config`), one deterministic tick after another, so the tests
-can rebuild every published message and compare it field by field with the bag.
+The fake rig (tests/nodes/fake_rig_publisher.py) publishes deterministic ticks, so the tests can rebuild
+every published message and compare it field by field with the bag.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import signal
@@ -22,170 +19,23 @@ from typing import IO, Any
 import pytest
 import rclpy
 import yaml
-from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.duration import Duration
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Header, String
+from std_msgs.msg import String
 
 from g2p.bags import BagReader, recoverable_counts
-from g2p_interfaces.msg import (
-    InverseMapWeights,
-    LearnerEvent,
-    MotorActivation,
-    MotorPower,
-    NamedArray,
-    Treadmill,
+from tests.nodes.fake_rig_publisher import (
+    CONFIG,
+    CONFIG_TOPIC,
+    FAST_SIM_DEPTH,
+    RELIABLE_TOPICS,
+    RIG_TOPICS,
+    STAMP0_NS,
+    TICK_NS,
+    tick_messages,
 )
-from g2p_ros import contract
+from tests.nodes.rosproc import executable
 
-ROOT = Path(__file__).resolve().parents[2]
-BIN = ROOT / "install" / "g2p_ros" / "lib" / "g2p_ros"
-STAMP0_NS = 50 * 1_000_000_000
-TICK_NS = 12_820_513  # 78 Hz of rig time
-# Fast simulation: the rig's publishers need a history that covers the recorder's worst scheduling pause
-# on a loaded machine (contract.SAMPLE_QOS keeps 200 = 40 ms at 5000 ticks/s; see docs/BAGS.md).
-FAST_SIM_DEPTH = 10000
-EVENT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-LATCHED_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-RIG_TOPICS = ["/leg/joint_states", "/leg/treadmill", "/leg/motor_power", "/leg/applied_activation"]
-RELIABLE_TOPICS = [*RIG_TOPICS, "/diagnostics", "/leg/learner/events", "/leg/learner/inverse_map"]
-CONFIG_TOPIC = "/leg/fake_rig/config"
-CONFIG = {"fake_rig": True, "tick_ns": TICK_NS}
-
-
-# The fake rig -------------------------------------------------------------------------------------------
-
-
-def tick_messages(k: int) -> list[tuple[str, Any]]:
-    """The messages of tick k, in publishing order: (topic, message)."""
-    ns = STAMP0_NS + k * TICK_NS
-    stamp = Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
-    header = Header(stamp=stamp, frame_id="leg")
-    out: list[tuple[str, Any]] = [
-        ("/clock", Clock(clock=stamp)),
-        (
-            "/leg/joint_states",
-            JointState(
-                header=header,
-                name=["proximal", "distal"],
-                position=[1e-3 * k, -2e-3 * k],
-                velocity=[0.5, -0.5],
-            ),
-        ),
-        ("/leg/treadmill", Treadmill(header=header, displacement_mm=float(k), velocity_mm_s=39.0)),
-        (
-            "/leg/motor_power",
-            MotorPower(
-                header=header,
-                current_a=[0.1, 0.2, 0.3],
-                power_w=[1.0, 2.0, float(k % 9)],
-                energy_j=[0.01 * k, 0.02 * k, 0.03 * k],
-            ),
-        ),
-        ("/leg/applied_activation", MotorActivation(header=header, activation=[0.15, 0.5, (k % 100) / 100])),
-    ]
-    if k % 78 == 0:
-        out.append(
-            (
-                "/diagnostics",
-                DiagnosticArray(header=header, status=[DiagnosticStatus(name="fake rig", message=str(k))]),
-            )
-        )
-    if k % 100 == 0:
-        out.append(
-            (
-                "/leg/learner/events",
-                LearnerEvent(
-                    header=header,
-                    run_id="fake",
-                    event="attempt_start",
-                    phase="exploration",
-                    attempt=k // 100 + 1,
-                    features=[0.5] * 10,
-                    detail=json.dumps({"k": k}),
-                ),
-            )
-        )
-    if k % 500 == 0:
-        out.append(
-            (
-                "/leg/learner/inverse_map",
-                InverseMapWeights(
-                    header=header,
-                    run_id="fake",
-                    refinement=k // 500,
-                    format_version=1,
-                    arrays=[NamedArray(name="W1", shape=[2, 2], data=[float(k), 1.0, 2.0, 3.0])],
-                    training_samples=k,
-                ),
-            )
-        )
-    return out
-
-
-def publish_main(argv: list[str]) -> None:
-    """Publish `--ticks` ticks at `--rate` ticks/s (0: as fast as possible) once the recorder subscribed."""
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--ticks", type=int, required=True)
-    parser.add_argument("--rate", type=float, default=0.0)
-    parser.add_argument("--depth", type=int, default=contract.SAMPLE_QOS.depth)
-    parser.add_argument("--hold", action="store_true", help="stay alive after publishing until SIGTERM")
-    parser.add_argument(
-        "--wait-for", nargs="*", default=RELIABLE_TOPICS, help="start once these are subscribed"
-    )
-    ns = parser.parse_args(argv)
-    rclpy.init()
-    node = rclpy.create_node("fake_rig", namespace="/leg")
-    sample_qos = QoSProfile(
-        history=contract.SAMPLE_QOS.history,
-        depth=ns.depth,
-        reliability=contract.SAMPLE_QOS.reliability,
-        durability=contract.SAMPLE_QOS.durability,
-    )
-    types = {
-        "/clock": (Clock, contract.CLOCK_QOS),
-        "/diagnostics": (DiagnosticArray, 10),
-        "/leg/learner/events": (LearnerEvent, EVENT_QOS),
-        "/leg/learner/inverse_map": (InverseMapWeights, LATCHED_QOS),
-        "/leg/joint_states": (JointState, sample_qos),
-        "/leg/treadmill": (Treadmill, sample_qos),
-        "/leg/motor_power": (MotorPower, sample_qos),
-        "/leg/applied_activation": (MotorActivation, sample_qos),
-    }
-    pubs = {topic: node.create_publisher(cls, topic, qos) for topic, (cls, qos) in types.items()}
-    config = node.create_publisher(String, "~/config", LATCHED_QOS)
-    config.publish(String(data=json.dumps(CONFIG)))
-    deadline = time.monotonic() + 60
-    while any(pubs[t].get_subscription_count() == 0 for t in ns.wait_for) and time.monotonic() < deadline:
-        time.sleep(0.02)
-    published: dict[str, int] = {t: 0 for t in pubs}
-    start = time.monotonic()
-    for k in range(ns.ticks):
-        for topic, msg in tick_messages(k):
-            pubs[topic].publish(msg)
-            published[topic] += 1
-        if ns.rate > 0:
-            delay = start + (k + 1) / ns.rate - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
-    elapsed = time.monotonic() - start
-    for topic in RELIABLE_TOPICS:
-        pubs[topic].wait_for_all_acked(Duration(seconds=30))
-    print(json.dumps({"published": published, "ticks_per_s": ns.ticks / elapsed}), flush=True)
-    if ns.hold:
-        signal.sigwait({signal.SIGTERM, signal.SIGINT})
-    node.destroy_node()
-    rclpy.try_shutdown()
-
+FAKE_RIG = Path(__file__).with_name("fake_rig_publisher.py")
 
 # Test helpers -------------------------------------------------------------------------------------------
 
@@ -234,7 +84,7 @@ def start_publisher(
 ) -> subprocess.Popen[str]:
     argv = [
         sys.executable,
-        str(Path(__file__).resolve()),
+        str(FAKE_RIG),
         "publish",
         "--ticks",
         str(ticks),
@@ -248,7 +98,7 @@ def start_publisher(
 
 
 def start_recorder(procs: Processes, bags: Path, *params: str) -> subprocess.Popen[str]:
-    argv = [str(BIN / "record"), "--ros-args", "-p", f"bags_dir:={bags}"]
+    argv = [str(executable("g2p_ros", "record")), "--ros-args", "-p", f"bags_dir:={bags}"]
     for p in params:
         argv += ["-p", p]
     return procs.start("recorder", argv)
@@ -393,7 +243,9 @@ def test_kill_9_then_recover_bag_keeps_every_flushed_chunk(procs: Processes, tmp
     recorder.send_signal(signal.SIGKILL)
     recorder.wait(timeout=10)
     assert not (bag / "metadata.yaml").exists()
-    done = subprocess.run([str(BIN / "recover_bag"), str(bag)], capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [str(executable("g2p_ros", "recover_bag")), str(bag)], capture_output=True, text=True, timeout=120
+    )
     assert done.returncode == 0, done.stderr
     recorded = recorded_by_topic(bag)
     expected = expected_by_topic(ticks)
@@ -417,7 +269,10 @@ def test_kill_9_mid_stream_recovers_a_clean_prefix(procs: Processes, tmp_path: P
     publisher.kill()
     publisher.wait(timeout=10)
     assert (
-        subprocess.run([str(BIN / "recover_bag"), str(bag)], capture_output=True, timeout=120).returncode == 0
+        subprocess.run(
+            [str(executable("g2p_ros", "recover_bag")), str(bag)], capture_output=True, timeout=120
+        ).returncode
+        == 0
     )
     recorded = recorded_by_topic(bag)
     expected = expected_by_topic(ticks)
@@ -455,10 +310,3 @@ def test_selection_regex_and_sim_time_stamps(procs: Processes, tmp_path: Path) -
     # the recorder's clock follows /clock: every message is stamped with (about) the rig time of its tick
     assert STAMP0_NS <= min(stamps) and max(stamps) <= STAMP0_NS + ticks * TICK_NS
     assert stamps == sorted(stamps)
-
-
-if __name__ == "__main__":
-    if sys.argv[1:2] == ["publish"]:
-        publish_main(sys.argv[2:])
-    else:
-        sys.exit("usage: test_recorder.py publish --ticks N [--rate HZ] [--depth N] [--hold]")

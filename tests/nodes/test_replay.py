@@ -1,6 +1,6 @@
 """replay in real processes: record a live stream with `record`, replay it with `replay`, subscribe here.
 
-The stream comes from the fake rig of test_recorder.py (run as a process); this test process subscribes
+The stream comes from the fake rig of fake_rig_publisher.py (run as a process); this test process subscribes
 raw, in its own rclpy Context, and compares what arrives with the bag, topic by topic and in order.
 """
 
@@ -24,10 +24,9 @@ from sensor_msgs.msg import JointState
 
 from g2p.bags import BagReader
 from g2p_interfaces.msg import MotorActivation, Treadmill
+from tests.nodes.rosproc import executable
 
-ROOT = Path(__file__).resolve().parents[2]
-BIN = ROOT / "install" / "g2p_ros" / "lib" / "g2p_ros"
-FAKE_RIG = Path(__file__).with_name("test_recorder.py")
+FAKE_RIG = Path(__file__).with_name("fake_rig_publisher.py")
 TICKS = 600
 RECORD_RATE = 300.0  # ticks/s: the bag spans about 2 s
 SUBSCRIBER_QOS = QoSProfile(
@@ -64,7 +63,8 @@ def bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
         tmp / "rig.out",
     )
     recorder = run_process(
-        [str(BIN / "record"), "--ros-args", "-p", f"bags_dir:={tmp / 'bags'}"], tmp / "rec.out"
+        [str(executable("g2p_ros", "record")), "--ros-args", "-p", f"bags_dir:={tmp / 'bags'}"],
+        tmp / "rec.out",
     )
     try:
         assert finish(rig) == 0, (tmp / "rig.out").read_text()
@@ -131,7 +131,7 @@ def bag_messages(bag: Path, topic: str) -> list[bytes]:
 
 
 def replay(bag: Path, tmp_path: Path, *options: str) -> subprocess.Popen[str]:
-    return run_process([str(BIN / "replay"), str(bag), *options], tmp_path / "replay.out")
+    return run_process([str(executable("g2p_ros", "replay")), str(bag), *options], tmp_path / "replay.out")
 
 
 def test_replay_delivers_the_recorded_messages_in_order(
@@ -244,7 +244,7 @@ def test_replay_loops_until_stopped(bag: Path, tmp_path: Path, probe_factory: li
 )
 def test_replay_bad_options_exit_2(bag: Path, tmp_path: Path, options: list[str], message: str) -> None:
     done = subprocess.run(
-        [str(BIN / "replay"), str(bag), *options], capture_output=True, text=True, timeout=60
+        [str(executable("g2p_ros", "replay")), str(bag), *options], capture_output=True, text=True, timeout=60
     )
     assert done.returncode == 2
     assert len(done.stderr.splitlines()) == 1 and message in done.stderr
@@ -259,7 +259,9 @@ def test_replay_of_a_truncated_bag_exits_2_naming_the_file(bag: Path, tmp_path: 
     mcap = broken / f"{bag.name}.mcap"
     with mcap.open("r+b") as f:
         f.truncate(mcap.stat().st_size // 2)
-    done = subprocess.run([str(BIN / "replay"), str(broken)], capture_output=True, text=True, timeout=60)
+    done = subprocess.run(
+        [str(executable("g2p_ros", "replay")), str(broken)], capture_output=True, text=True, timeout=60
+    )
     assert done.returncode == 2
     assert done.stderr.splitlines() == [
         line for line in done.stderr.splitlines() if line.startswith("replay: error:")

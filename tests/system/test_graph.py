@@ -15,6 +15,7 @@ import pytest
 from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
 
+from g2p.bags import BagReader
 from g2p.bags.dataset import load_run, load_training_data
 from g2p.inverse_map import InverseMap
 from g2p.learner import Learner, LearnerConfig
@@ -57,15 +58,15 @@ class LearnerClient(RosPeer):
         self.learn = ActionClient(self.node, Learn, "learn")
         self.track = ActionClient(self.node, Track, "track")
         self.applied: list[list[float]] = []
+        applied = f"{rig_namespace}/{contract.APPLIED_ACTIVATION}"
         self.node.create_subscription(
-            MotorActivation,
-            f"{rig_namespace}/{contract.APPLIED_ACTIVATION}",
-            lambda m: self.applied.append(list(m.activation)),
-            10000,
+            MotorActivation, applied, lambda m: self.applied.append(list(m.activation)), 10000
         )
         self.start()
         for client in (self.babble, self.attempt, self.learn, self.track):
             assert client.wait_for_server(timeout_sec=60.0), "the learner's actions never appeared"
+        # The rig's ticks are volatile: see its publisher before anything plays, or miss the first ones.
+        wait_until(lambda: self.node.count_publishers(applied) > 0, 60.0, f"a publisher of {applied}")
         time.sleep(contract.DISCOVERY_SETTLE_S)  # see contract.ServerWatch
 
     def destroy_entities(self) -> None:
@@ -221,6 +222,19 @@ def test_make_run_equivalent_records_a_run_whose_map_can_be_rebuilt_from_the_bag
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "| test-run |" in proc.stdout
     bag = bags / "test-run"
+    # Every tick of the run reached the bag on every rig topic, the last ones included (the rig flushes its
+    # publishers before it exits). Ticks stamped 0 are from before the run: the rig's first reset sample
+    # reaches only the topics the recorder had subscribed to by then.
+    with BagReader(bag) as reader:
+        stamps = {t: [] for t in contract.RIG_SAMPLE_TOPICS}
+        for m in reader.messages([f"/leg/{t}" for t in contract.RIG_SAMPLE_TOPICS]):
+            stamps[m.topic.removeprefix("/leg/")].append(
+                m.msg.header.stamp.sec * 10**9 + m.msg.header.stamp.nanosec
+            )
+    played = {t: sorted(s for s in v if s > 0) for t, v in stamps.items()}
+    assert all(v == played[contract.JOINT_STATES] for v in played.values()), {
+        t: len(v) for t, v in played.items()
+    }
     summary = json.loads((bag / "summary.json").read_text())
     run = load_run(bag)
     assert summary["attempt_count"] == len(run.attempts) >= 3
