@@ -7,7 +7,7 @@ ROS_SUITES := tests/interfaces tests/nodes tests/system
 # The main job: a full G2P learning run on the simulated rig (fast time), recorded to bags/<run-id>/
 # with its report. Extra bring-up options: make run ARGS="--set learner.learner.seed=3"
 run:
-	scripts/with-env scripts/ros2-run g2p_ros bringup $(ARGS)
+	scripts/with-env scripts/ros2-run g2p_bringup bringup $(ARGS)
 
 # Lint, then every test on ROS 2 Kilted (core, simulator, hardware on fake buses, bags, nodes, and the
 # whole graph in real processes), then the interface, node and system tests on ROS 2 Jazzy.

@@ -1,7 +1,7 @@
 """How well the hardware loop keeps 78 Hz and samples the motor currents at 500 Hz, on the fake devices.
 
 The hardware plant (`g2p.hardware.HardwareLeg`) runs on the monotonic clock against the physics-backed
-fake buses (`g2p.hardware.fakes`: the chips answer byte for byte, the MuJoCo leg moves), playing motor
+fake buses (`g2p.hardware.fake_rig`: the chips answer byte for byte, the MuJoCo leg moves), playing motor
 babbling as in the paper. Two ways to drive it:
 
     plant       the plant alone, stepped back to back (the loop's own timing);
@@ -13,7 +13,7 @@ whole period, and the current-sampling rate achieved against 500 Hz.
 
     source scripts/env.sh
     python benchmarks/bench_driver.py [--seconds 60] [--mode plant|rig_server|both] [--sched-fifo 0]
-                                      [--rig-config rig.yaml]   # on the Pi: the real devices
+                                      [--rig-config wiring.yaml]   # on the Pi: the real devices
 
 On the Pi the buses add their transfer times (about 0.1 ms per INA219 word at 400 kHz I2C); here the
 fake chips and the MuJoCo physics cost CPU instead. On a loaded machine, expect outliers in p99 and max.
@@ -29,8 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from g2p.hardware import HardwareLeg, HardwareLegConfig, RigConfig, load_rig_config, open_devices
-from g2p.hardware.fakes import fake_devices
+from g2p.hardware import HardwareLeg, HardwareLegConfig, WiringConfig, load_wiring, open_devices
+from g2p.hardware.fake_rig import fake_devices
 from g2p.plant import NOMINAL_TICK_HZ, FloatArray, TickSample
 
 
@@ -97,21 +97,21 @@ def figures(mode: str, stamps: FloatArray, leg: HardwareLeg, cpu_fraction: float
     )
 
 
-def make_leg(sched_fifo: int, rig_config: str = "") -> HardwareLeg:
+def make_leg(sched_fifo: int, wiring: str = "") -> HardwareLeg:
     """The hardware plant on the monotonic clock, quick to reset: on fake devices, or the real ones."""
-    if rig_config:
-        rig = load_rig_config(rig_config)
-        devices = open_devices(rig)
+    if wiring:
+        wiring = load_wiring(wiring)
+        devices = open_devices(wiring)
     else:
-        rig = RigConfig()
-        _, devices = fake_devices(rig)
+        wiring = WiringConfig()
+        _, devices = fake_devices(wiring)
     config = HardwareLegConfig(sched_fifo_priority=sched_fifo, dither_amplitude=0.0, settle_min_s=0.2)
-    return HardwareLeg(devices, rig, config)
+    return HardwareLeg(devices, wiring, config)
 
 
-def run_plant(seconds: float, sched_fifo: int, seed: int, rig_config: str = "") -> Figures:
+def run_plant(seconds: float, sched_fifo: int, seed: int, wiring: str = "") -> Figures:
     """Step the plant back to back for `seconds` (s) of babbling."""
-    leg = make_leg(sched_fifo, rig_config)
+    leg = make_leg(sched_fifo, wiring)
     try:
         leg.reset()
         seq = babbling(np.random.default_rng(seed), round(seconds * NOMINAL_TICK_HZ))
@@ -147,7 +147,7 @@ class _StampingPlant:
         self.leg.close()
 
 
-def run_rig_server(seconds: float, sched_fifo: int, seed: int, rig_config: str = "") -> Figures:
+def run_rig_server(seconds: float, sched_fifo: int, seed: int, wiring: str = "") -> Figures:
     """Play `seconds` (s) of babbling through the rig server's run_activations, in one process."""
     import rclpy
     from rclpy.action import ActionClient
@@ -165,7 +165,7 @@ def run_rig_server(seconds: float, sched_fifo: int, seed: int, rig_config: str =
     node = Node("bench_driver", namespace="/bench_leg", context=context)
     executor = MultiThreadedExecutor(num_threads=3, context=context)
     executor.add_node(node)
-    plant = _StampingPlant(make_leg(sched_fifo, rig_config))
+    plant = _StampingPlant(make_leg(sched_fifo, wiring))
     server = RigServer(node, plant, Pacing.PLANT)  # type: ignore[arg-type]
     client = ActionClient(node, RunActivations, contract.RUN_ACTIVATIONS)
     spinner = threading.Thread(target=executor.spin, daemon=True)  # after the entities exist
@@ -219,9 +219,9 @@ def main() -> None:
         f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}"
     )
     if args.mode in ("plant", "both"):
-        print(run_plant(args.seconds, args.sched_fifo, args.seed, args.rig_config).line(), flush=True)
+        print(run_plant(args.seconds, args.sched_fifo, args.seed, args.wiring).line(), flush=True)
     if args.mode in ("rig_server", "both"):
-        run_rig_server(args.seconds, args.sched_fifo, args.seed, args.rig_config)
+        run_rig_server(args.seconds, args.sched_fifo, args.seed, args.wiring)
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
+from ament_index_python.packages import get_package_prefix
 from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.experimental import EventsExecutor
@@ -50,7 +51,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def installed(package: str, name: str) -> str:
     """The executable `ros2 run <package> <name>` runs."""
-    return str(ROOT / "install" / package / "lib" / package / name)
+    return str(Path(get_package_prefix(package)) / "lib" / package / name)
 
 
 def cpu_s(pid: int) -> float:
@@ -184,7 +185,7 @@ def graph_run() -> dict[str, float]:
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         bringup = subprocess.Popen(
-            [installed("g2p_ros", "bringup"), "--bags-dir", tmp, "--run-id", "bench", "--no-report"],
+            [installed("g2p_bringup", "bringup"), "--bags-dir", tmp, "--run-id", "bench", "--no-report"],
             stdout=subprocess.PIPE,
             stderr=subprocess.DEVNULL,
             text=True,

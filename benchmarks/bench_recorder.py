@@ -1,7 +1,7 @@
 """Recorder throughput against the fast simulation's rate, and bag size per minute of rig time.
 
 Three measurements on this machine:
-    end to end: the installed `record` executable recording the fake rig of tests/nodes/test_recorder.py
+    end to end: the installed `record` executable recording the fake rig of tests/nodes/fake_rig_publisher.py
         (a separate process publishing joint_states, treadmill, motor_power, applied_activation and /clock
         every tick, plus /diagnostics, learner events and maps) as fast as it can publish. Reports the
         publisher's tick rate, messages and MB (serialized payload) recorded per second of the publishing
@@ -30,6 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from ament_index_python.packages import get_package_prefix
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.serialization import serialize_message
@@ -42,8 +43,8 @@ from g2p.bags import BagReader, BagWriter, InterfaceLibrary, TopicSpec, TypeRegi
 from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
 
 ROOT = Path(__file__).resolve().parents[1]
-RECORD = ROOT / "install" / "g2p_ros" / "lib" / "g2p_ros" / "record"
-FAKE_RIG = ROOT / "tests" / "nodes" / "test_recorder.py"
+RECORD = Path(get_package_prefix("g2p_recorder")) / "lib" / "g2p_recorder" / "record"
+FAKE_RIG = ROOT / "tests" / "nodes" / "fake_rig_publisher.py"
 RELIABLE = [
     "/leg/joint_states",
     "/leg/treadmill",

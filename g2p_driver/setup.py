@@ -22,8 +22,8 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "driver = g2p_driver.driver_node:main",
-            "tendon_check = g2p_driver.tendon_check_main:main",
+            "driver = g2p_driver.driver:main",
+            "tendon_check = g2p_driver.tendon_check:main",
         ]
     },
 )

@@ -20,5 +20,5 @@ setup(
     maintainer_email="g2p-rig@example.org",
     description="G2P learner: motor babbling, inverse-map refinement and reward search as ROS 2 actions.",
     license="Apache-2.0",
-    entry_points={"console_scripts": ["learn = g2p_learner.learn_main:main"]},
+    entry_points={"console_scripts": ["learn = g2p_learner.learn:main"]},
 )

@@ -20,5 +20,5 @@ setup(
     maintainer_email="g2p-rig@example.org",
     description="MuJoCo simulation of the G2P tendon-driven leg on a treadmill, serving the rig contract.",
     license="Apache-2.0",
-    entry_points={"console_scripts": ["sim = g2p_sim.sim_node:main"]},
+    entry_points={"console_scripts": ["sim = g2p_sim.sim:main"]},
 )

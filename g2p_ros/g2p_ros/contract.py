@@ -15,7 +15,6 @@ APPLIED_ACTIVATION = "applied_activation"
 ACTIVATION_CMD = "activation_cmd"
 RUN_ACTIVATIONS = "run_activations"
 RESET = "reset"
-DEFAULT_NAMESPACE = "/leg"
 # What the rig publishes every tick.
 RIG_SAMPLE_TOPICS = (JOINT_STATES, TREADMILL, MOTOR_POWER, APPLIED_ACTIVATION)
 

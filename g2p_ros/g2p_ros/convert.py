@@ -9,7 +9,6 @@ from typing import Any
 import numpy as np
 from builtin_interfaces.msg import Time
 from rclpy.serialization import deserialize_message, serialize_message
-from rosbags.serde import SerdeError
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
@@ -135,12 +134,8 @@ def _canonical(msg: Any, types: TypeRegistry) -> bytes:
     name = f"{type(msg).__module__.split('.')[0]}/msg/{type(msg).__name__}"
     types.register(name)
     for end in range(len(data), 3, -1):
-        try:
-            decoded = types.typestore.deserialize_cdr(data[:end], name)
-        except SerdeError:
-            continue
-        out = bytes(types.typestore.serialize_cdr(decoded, name))
-        if deserialize_message(out, type(msg)) == msg:
+        out = types.reserialize(data[:end], name)
+        if out is not None and deserialize_message(out, type(msg)) == msg:
             return out
     raise ValueError(f"{name}: rosbags does not read rclpy's serialization of the message")
 

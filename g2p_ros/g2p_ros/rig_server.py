@@ -32,8 +32,8 @@ from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
 from g2p.config import require
-from g2p.plant import Plant, Recording, TickSample
-from g2p.safety import ActivationGate, InvalidActivation, check_activation_sequence
+from g2p.plant import NOMINAL_TICK_HZ, Plant, Recording, TickSample
+from g2p.safety import BASELINE_ACTIVATION, ActivationGate, InvalidActivation, check_activation_sequence
 from g2p_interfaces.action import RunActivations
 from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
 from g2p_ros import contract
@@ -62,7 +62,7 @@ class RigServerConfig:
         diagnostics_period_ticks: ticks between /diagnostics messages (78 = about 1 s of rig time).
         log_period_s: minimum wall time between two warnings about rejected or ignored commands (s).
         fast_max_real_time_factor: in fast simulation (on-demand pacing), the most simulated seconds per
-            wall second (0 = unlimited), so that subscribers such as the recorder keep up.
+            wall second (dimensionless; 0 = unlimited), so that subscribers such as the recorder keep up.
         clock_period_ticks: ticks between /clock messages (when the rig publishes /clock); the last tick
             before the rig idles and every reset are always published, so the clock is never behind a
             finished sequence. Every /clock message costs each use_sim_time node an executor callback.
@@ -72,9 +72,9 @@ class RigServerConfig:
     """
 
     watchdog_ticks: int = 3
-    baseline_activation: float = 0.15
+    baseline_activation: float = BASELINE_ACTIVATION
     feedback_period_s: float = 0.2
-    diagnostics_period_ticks: int = 78
+    diagnostics_period_ticks: int = round(NOMINAL_TICK_HZ)
     log_period_s: float = 1.0
     fast_max_real_time_factor: float = 60.0
     clock_period_ticks: int = 1

@@ -13,10 +13,13 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from g2p.plant import Plant, Recording
+from g2p.plant import NOMINAL_TICK_HZ, Plant, Recording
 from g2p.safety import check_activation_sequence
 
 ProgressCallback = Callable[[int, int], None]
+
+# The rig contract's default namespace: its topics, services and actions live under it.
+DEFAULT_NAMESPACE = "/leg"
 
 
 class RigError(RuntimeError):
@@ -57,7 +60,7 @@ class PlantRig:
         progress_every: ticks between progress callbacks.
     """
 
-    def __init__(self, plant: Plant, progress_every: int = 78) -> None:
+    def __init__(self, plant: Plant, progress_every: int = round(NOMINAL_TICK_HZ)) -> None:
         self.plant = plant
         self._progress_every = progress_every
 

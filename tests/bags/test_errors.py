@@ -10,7 +10,7 @@ import pytest
 
 from g2p.bags import BagError, BagReader, BagReadError, load_run, read_metadata
 from tests.bags.bagdata import SyntheticRun
-from tests.nodes.rosproc import executable
+from tests.commands import console_script
 
 
 @pytest.fixture
@@ -102,7 +102,7 @@ def test_report_cli_one_line_and_exit_2(bag: Path) -> None:
     with mcap.open("r+b") as f:
         f.truncate(mcap.stat().st_size // 2)
     done = subprocess.run(
-        [str(executable("g2p_ros", "report")), str(bag)], capture_output=True, text=True, timeout=120
+        [str(console_script("g2p-report")), str(bag)], capture_output=True, text=True, timeout=120
     )
     assert done.returncode == 2
     lines = done.stderr.splitlines()

@@ -20,7 +20,7 @@ from g2p.bags import (
     recover_bag,
 )
 from tests.bags.bagdata import SAMPLE_QOS, Messages
-from tests.nodes.rosproc import executable
+from tests.commands import console_script
 
 CHUNKS = 3
 PER_CHUNK = 1000
@@ -196,19 +196,19 @@ def test_no_storage_file(tmp_path: Path) -> None:
 def test_cli_recovers_and_reports(tmp_path: Path, registry: TypeRegistry, messages: Messages) -> None:
     crashed, kept, _ = crashed_bag(tmp_path, registry, messages)
     done = subprocess.run(
-        [str(executable("g2p_ros", "recover_bag")), str(crashed)], capture_output=True, text=True, timeout=60
+        [str(console_script("g2p-recover-bag")), str(crashed)], capture_output=True, text=True, timeout=60
     )
     assert done.returncode == 0, done.stderr
     assert f"recovered {len(kept)} messages on 2 topics from {CHUNKS} complete chunks" in done.stdout
     again = subprocess.run(
-        [str(executable("g2p_ros", "recover_bag")), str(crashed)], capture_output=True, text=True, timeout=60
+        [str(console_script("g2p-recover-bag")), str(crashed)], capture_output=True, text=True, timeout=60
     )
     assert again.returncode == 0 and "complete, nothing to recover" in again.stdout
 
 
 def test_cli_error_is_one_line_and_exit_2(tmp_path: Path) -> None:
     done = subprocess.run(
-        [str(executable("g2p_ros", "recover_bag")), str(tmp_path / "nope")],
+        [str(console_script("g2p-recover-bag")), str(tmp_path / "nope")],
         capture_output=True,
         text=True,
         timeout=60,

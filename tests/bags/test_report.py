@@ -14,7 +14,7 @@ from g2p.bags import BagError, BagWriter, TopicSpec, TypeRegistry, load_run, wri
 from g2p.bags.report import FIGURES
 from g2p.bags.summary import best_so_far, find_joint_limits, find_threshold, near_limit_fraction
 from tests.bags.bagdata import Messages, SyntheticRun
-from tests.nodes.rosproc import executable
+from tests.commands import console_script
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -118,7 +118,7 @@ def test_best_so_far_ignores_nan() -> None:
 
 def test_report_cli_writes_everything(run: SyntheticRun) -> None:
     done = subprocess.run(
-        [str(executable("g2p_ros", "report")), str(run.path)], capture_output=True, text=True, timeout=120
+        [str(console_script("g2p-report")), str(run.path)], capture_output=True, text=True, timeout=120
     )
     assert done.returncode == 0, done.stderr
     assert f"summary: {run.path / 'summary.json'}" in done.stdout

@@ -16,7 +16,7 @@ import pytest
 from g2p.plant import N_JOINTS, N_MOTORS, Plant, Recording, TickSample, run_sequence
 from g2p.safety import BASELINE_ACTIVATION, clamp_activation
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, TREADMILL_CARRIAGE_HEIGHT_M, MujocoLeg, MujocoLegConfig
-from tests.hardware.rigs import hardware_leg_on_fake_buses
+from tests.hardware.fake_legs import hardware_leg_on_fake_buses
 
 PlantFactory = Callable[[], Plant]
 

@@ -10,16 +10,17 @@ from typing import Any
 
 import pytest
 
-from g2p.hardware import DeviceError, RigConfig, build_devices, open_devices
-from g2p.hardware.fakes import FakeRig, FakeRigConfig, FaultKind
-from g2p.hardware.rig_config import MotorEnableConfig
+from g2p.hardware import DeviceError, WiringConfig, build_devices, open_devices
+from g2p.hardware.fake_chips import FaultKind
+from g2p.hardware.fake_rig import FakeRig, FakeRigConfig
+from g2p.hardware.wiring import MotorEnableConfig
 
-RIG = RigConfig()
+WIRING = WiringConfig()
 
 
 def test_build_devices_sets_every_chip_up_and_leaves_the_outputs_off() -> None:
-    fake = FakeRig(RIG)
-    devices = build_devices(RIG, fake)
+    fake = FakeRig(WIRING)
+    devices = build_devices(WIRING, fake)
     assert fake.pca is not None and fake.pca.regs[0xFE] == 5
     assert fake.enable_line is not None and fake.enable_line.active is False
     assert fake.outputs_state()["duty"] == [0.0, 0.0, 0.0]
@@ -44,10 +45,10 @@ def test_build_devices_sets_every_chip_up_and_leaves_the_outputs_off() -> None:
     ],
 )
 def test_a_broken_chip_fails_the_set_up_naming_it_and_releases_the_buses(breakage: Any, message: str) -> None:
-    fake = FakeRig(RIG)
+    fake = FakeRig(WIRING)
     breakage(fake)
     with pytest.raises(DeviceError, match=message):
-        build_devices(RIG, fake)
+        build_devices(WIRING, fake)
     assert fake.closed
 
 
@@ -140,11 +141,11 @@ def fake_linux_modules(fake: FakeRig, opened: Opened) -> dict[str, types.ModuleT
 
 
 def test_open_devices_opens_the_configured_buses_modes_and_line(monkeypatch: pytest.MonkeyPatch) -> None:
-    fake = FakeRig(RIG)
+    fake = FakeRig(WIRING)
     opened = Opened([], [], [])
     for name, module in fake_linux_modules(fake, opened).items():
         monkeypatch.setitem(sys.modules, name, module)
-    devices = open_devices(RIG)
+    devices = open_devices(WIRING)
     assert {(bus, cs, mode) for bus, cs, mode, _ in opened.spi} == {(0, 0, 1), (0, 1, 1), (1, 0, 0)}
     assert {speed for *_, speed in opened.spi} == {1_000_000}
     assert set(opened.i2c) == {1}
@@ -161,23 +162,23 @@ def test_open_devices_opens_the_configured_buses_modes_and_line(monkeypatch: pyt
 
 
 def test_open_devices_names_a_missing_library_or_bus(monkeypatch: pytest.MonkeyPatch) -> None:
-    fake = FakeRig(RIG)
+    fake = FakeRig(WIRING)
     modules = fake_linux_modules(fake, Opened([], [], []))
     for name, module in modules.items():
         monkeypatch.setitem(sys.modules, name, module)
     monkeypatch.setitem(sys.modules, "spidev", None)
     with pytest.raises(DeviceError, match="spidev"):
-        open_devices(RIG)
+        open_devices(WIRING)
     monkeypatch.setitem(sys.modules, "spidev", modules["spidev"])
-    moved = replace(RIG, belt=replace(RIG.belt, spi=replace(RIG.belt.spi, bus=3)))
+    moved = replace(WIRING, belt=replace(WIRING.belt, spi=replace(WIRING.belt.spi, bus=3)))
     with pytest.raises(DeviceError, match=r"/dev/spidev3\.0"):
         open_devices(moved)
 
 
 def test_the_sysfs_backend_on_the_fake_tree(tmp_path: Any) -> None:
-    rig = replace(RIG, pwm=replace(RIG.pwm, backend=RIG.pwm.backend.SYSFS, frequency_hz=20000.0))
-    fake = FakeRig(rig, FakeRigConfig(state_dir=str(tmp_path)))
-    devices = build_devices(rig, fake)
+    wiring = replace(WIRING, pwm=replace(WIRING.pwm, backend=WIRING.pwm.backend.SYSFS, frequency_hz=20000.0))
+    fake = FakeRig(wiring, FakeRigConfig(state_dir=str(tmp_path)))
+    devices = build_devices(wiring, fake)
     assert fake.sysfs is not None
     assert fake.sysfs.channel_state(1) == (50_000, 0, True)
     devices.outputs.apply(__import__("numpy").array([0.0, 0.5, 1.0]))

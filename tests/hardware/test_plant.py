@@ -9,16 +9,17 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from g2p.hardware import HardwareFault, HardwareLeg, HardwareLegConfig, MonotonicClock, RigConfig
-from g2p.hardware.fakes import FakeRigConfig, FaultKind, fake_devices
+from g2p.hardware import HardwareFault, HardwareLeg, HardwareLegConfig, MonotonicClock, WiringConfig
+from g2p.hardware.fake_chips import FaultKind
+from g2p.hardware.fake_rig import FakeRigConfig, fake_devices
 from g2p.hardware.plant import dither_activation
 from g2p.plant import Recording, run_sequence
 from g2p.sim import TREADMILL_CARRIAGE_HEIGHT_M
-from tests.hardware.rigs import FAST, fake_leg
+from tests.hardware.fake_legs import FAST, fake_leg
 
-RIG = RigConfig()
+WIRING = WiringConfig()
 PERIOD = 1.0 / 78.0
-BASELINE_DUTY = RIG.pwm.duty(0.15)
+BASELINE_DUTY = WIRING.pwm.duty(0.15)
 
 
 def duties(fake) -> np.ndarray:  # type: ignore[no-untyped-def]
@@ -48,8 +49,10 @@ def test_ticks_keep_absolute_deadlines_and_sample_currents_at_500_hz() -> None:
 
 
 def test_on_the_monotonic_clock_the_loop_holds_78_hz() -> None:
-    _, devices = fake_devices(RIG)
-    leg = HardwareLeg(devices, RIG, replace(FAST, dither_amplitude=0.0, settle_min_s=0.0, settle_hold_s=0.1))
+    _, devices = fake_devices(WIRING)
+    leg = HardwareLeg(
+        devices, WIRING, replace(FAST, dither_amplitude=0.0, settle_min_s=0.0, settle_hold_s=0.1)
+    )
     try:
         leg.reset()
         start = time.monotonic()
@@ -167,11 +170,11 @@ def test_a_pwm_that_cannot_be_written_is_switched_off_by_the_enable_line() -> No
 
 
 def test_watchdog_drops_to_baseline_when_ticks_stop() -> None:
-    fake, devices = fake_devices(RIG)
+    fake, devices = fake_devices(WIRING)
     config = HardwareLegConfig(
         dither_amplitude=0.0, settle_min_s=0.0, settle_hold_s=0.05, step_watchdog_s=0.1
     )
-    leg = HardwareLeg(devices, RIG, config, MonotonicClock())
+    leg = HardwareLeg(devices, WIRING, config, MonotonicClock())
     try:
         leg.reset()
         leg.step(np.full(3, 0.9))
@@ -236,7 +239,7 @@ def test_belt_counter_reads_the_treadmill() -> None:
     for _ in range(3):
         hold(leg, (0.8, 0.15, 0.3), 40)
         rec = hold(leg, (0.15, 0.7, 0.4), 40)
-    mm_per_count = 2 * math.pi * RIG.belt.drum_radius_mm / RIG.belt.counts_per_rev
+    mm_per_count = 2 * math.pi * WIRING.belt.drum_radius_mm / WIRING.belt.counts_per_rev
     assert abs(fake.belt_mm - origin) > 5.0  # the belt moved
     assert rec.belt_mm[-1] == pytest.approx(fake.belt_mm - origin, abs=mm_per_count)
 

@@ -1,4 +1,4 @@
-"""The installed graph description (g2p_ros/config/graph.yaml): every rig resolves, treadmill or air."""
+"""The installed graph description (g2p_bringup/config/graph.yaml): every rig resolves, treadmill or air."""
 
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ from pathlib import Path
 import pytest
 from ament_index_python.packages import get_package_share_directory
 
-from g2p.hardware.fakes import FakeRigConfig
+from g2p.hardware.fake_rig import FakeRigConfig
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, TREADMILL_CARRIAGE_HEIGHT_M, MujocoLegConfig
-from g2p_ros.graph import load_graph
+from g2p_bringup.graph import load_graph
 
-GRAPH = Path(get_package_share_directory("g2p_ros")) / "config" / "graph.yaml"
+GRAPH = Path(get_package_share_directory("g2p_bringup")) / "config" / "graph.yaml"
 SUBSTITUTIONS = {"run_id": "test-run", "bags_dir": "bags"}
 
 

@@ -23,6 +23,7 @@ from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 
 from g2p.bags import BagReader, recoverable_counts
+from tests.commands import console_script
 from tests.nodes.fake_rig_publisher import (
     CONFIG,
     CONFIG_TOPIC,
@@ -98,7 +99,7 @@ def start_publisher(
 
 
 def start_recorder(procs: Processes, bags: Path, *params: str) -> subprocess.Popen[str]:
-    argv = [str(executable("g2p_ros", "record")), "--ros-args", "-p", f"bags_dir:={bags}"]
+    argv = [str(executable("g2p_recorder", "record")), "--ros-args", "-p", f"bags_dir:={bags}"]
     for p in params:
         argv += ["-p", p]
     return procs.start("recorder", argv)
@@ -244,7 +245,7 @@ def test_kill_9_then_recover_bag_keeps_every_flushed_chunk(procs: Processes, tmp
     recorder.wait(timeout=10)
     assert not (bag / "metadata.yaml").exists()
     done = subprocess.run(
-        [str(executable("g2p_ros", "recover_bag")), str(bag)], capture_output=True, text=True, timeout=120
+        [str(console_script("g2p-recover-bag")), str(bag)], capture_output=True, text=True, timeout=120
     )
     assert done.returncode == 0, done.stderr
     recorded = recorded_by_topic(bag)
@@ -270,7 +271,7 @@ def test_kill_9_mid_stream_recovers_a_clean_prefix(procs: Processes, tmp_path: P
     publisher.wait(timeout=10)
     assert (
         subprocess.run(
-            [str(executable("g2p_ros", "recover_bag")), str(bag)], capture_output=True, timeout=120
+            [str(console_script("g2p-recover-bag")), str(bag)], capture_output=True, timeout=120
         ).returncode
         == 0
     )

@@ -63,7 +63,7 @@ def bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
         tmp / "rig.out",
     )
     recorder = run_process(
-        [str(executable("g2p_ros", "record")), "--ros-args", "-p", f"bags_dir:={tmp / 'bags'}"],
+        [str(executable("g2p_recorder", "record")), "--ros-args", "-p", f"bags_dir:={tmp / 'bags'}"],
         tmp / "rec.out",
     )
     try:
@@ -131,7 +131,9 @@ def bag_messages(bag: Path, topic: str) -> list[bytes]:
 
 
 def replay(bag: Path, tmp_path: Path, *options: str) -> subprocess.Popen[str]:
-    return run_process([str(executable("g2p_ros", "replay")), str(bag), *options], tmp_path / "replay.out")
+    return run_process(
+        [str(executable("g2p_recorder", "replay")), str(bag), *options], tmp_path / "replay.out"
+    )
 
 
 def test_replay_delivers_the_recorded_messages_in_order(
@@ -244,7 +246,10 @@ def test_replay_loops_until_stopped(bag: Path, tmp_path: Path, probe_factory: li
 )
 def test_replay_bad_options_exit_2(bag: Path, tmp_path: Path, options: list[str], message: str) -> None:
     done = subprocess.run(
-        [str(executable("g2p_ros", "replay")), str(bag), *options], capture_output=True, text=True, timeout=60
+        [str(executable("g2p_recorder", "replay")), str(bag), *options],
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert done.returncode == 2
     assert len(done.stderr.splitlines()) == 1 and message in done.stderr
@@ -260,7 +265,7 @@ def test_replay_of_a_truncated_bag_exits_2_naming_the_file(bag: Path, tmp_path: 
     with mcap.open("r+b") as f:
         f.truncate(mcap.stat().st_size // 2)
     done = subprocess.run(
-        [str(executable("g2p_ros", "replay")), str(broken)], capture_output=True, text=True, timeout=60
+        [str(executable("g2p_recorder", "replay")), str(broken)], capture_output=True, text=True, timeout=60
     )
     assert done.returncode == 2
     assert done.stderr.splitlines() == [

@@ -38,7 +38,11 @@ def start_sim(log_dir: Path, namespace: str = "/leg", *extra: str) -> NodeProces
 def run_bringup(cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
     """The installed `bringup` with `args`, run to its end in `cwd`; its output captured."""
     return subprocess.run(
-        [str(executable("g2p_ros", "bringup")), *args], capture_output=True, text=True, timeout=600, cwd=cwd
+        [str(executable("g2p_bringup", "bringup")), *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=cwd,
     )
 
 

@@ -41,9 +41,9 @@ from g2p.bags.events import (
 from g2p.bags.reader import BagReader
 from g2p.bags.ticks import TickAssembler, Ticks, rig_topic_names
 from g2p.plant import N_JOINTS, Recording, concatenate
+from g2p.rig import DEFAULT_NAMESPACE
 
 BABBLING = "babbling"
-DEFAULT_RIG_NAMESPACE = "/leg"
 _END_OF_TIME = np.iinfo(np.int64).max
 _STAMP_SLACK_NS = 1_000_000
 
@@ -135,7 +135,7 @@ class TrainingData:
     inverse_map: dict[str, FloatArray] | None
 
 
-def load_run(bag: Path | str, rig_namespace: str = DEFAULT_RIG_NAMESPACE) -> RunData:
+def load_run(bag: Path | str, rig_namespace: str = DEFAULT_NAMESPACE) -> RunData:
     """Read a recorded run.
 
     Args:
@@ -191,7 +191,7 @@ def load_run(bag: Path | str, rig_namespace: str = DEFAULT_RIG_NAMESPACE) -> Run
     )
 
 
-def load_training_data(bag: Path | str, rig_namespace: str = DEFAULT_RIG_NAMESPACE) -> TrainingData:
+def load_training_data(bag: Path | str, rig_namespace: str = DEFAULT_NAMESPACE) -> TrainingData:
     """The babbling and attempt segments of a recorded run, and its latest inverse map.
 
     Raises:

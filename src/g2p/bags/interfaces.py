@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from rosbags.interfaces import Nodetype
+from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
@@ -153,6 +154,17 @@ class TypeRegistry:
             except Exception as err:  # a type already registered with another definition
                 raise InterfaceError(f"cannot register {msgtype}: {err}") from err
             self._registered.update(found)
+
+    def reserialize(self, data: bytes, msgtype: str) -> bytes | None:
+        """`data` decoded as one `msgtype` message and serialized again (exact length, zero padding).
+
+        Returns None when `data` is not exactly one such message (the type must be registered).
+        """
+        try:
+            decoded = self.typestore.deserialize_cdr(data, msgtype)
+        except SerdeError:
+            return None
+        return bytes(self.typestore.serialize_cdr(decoded, msgtype))
 
     def definition(self, msgtype: str) -> TypeDefinition:
         """The schema text and RIHS01 hash of `msgtype`, registering it first if needed.

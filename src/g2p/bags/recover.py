@@ -6,12 +6,18 @@ record by record, keeps the schemas, channels (with their QoS and type hash) and
 complete chunk, stops at the first truncated record, and writes a new, finalized bag in place of the
 old file. The old file is kept beside it as `<run>.mcap.damaged`. At most the chunk that was being
 filled is lost.
+
+    g2p-recover-bag bags/<run> [--force]
+
+The command leaves a complete bag alone unless --force; errors give one line on stderr and exit status 2.
 """
 
 from __future__ import annotations
 
+import argparse
 import shutil
 import struct
+import sys
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from io import BytesIO
@@ -27,7 +33,7 @@ from rosbags.rosbag2.metadata import parse_qos
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from zstandard import ZstdError
 
-from g2p.bags.errors import BagReadError, RecoveryError
+from g2p.bags.errors import BagError, BagReadError, RecoveryError
 from g2p.bags.interfaces import TypeDefinition
 from g2p.bags.metadata import read_metadata
 from g2p.bags.reader import BagReader
@@ -283,3 +289,42 @@ def _backup(file: Path) -> Path:
         n += 1
     file.replace(target)
     return target
+
+
+def main(args: list[str] | None = None) -> None:
+    """Entry point of `g2p-recover-bag`: recover one bag; exit 2 when it cannot be recovered."""
+    parser = argparse.ArgumentParser(
+        prog="g2p-recover-bag", description="Rebuild a readable bag from what a killed recorder wrote."
+    )
+    parser.add_argument("bag", type=Path, help="the bag directory (bags/<run-id>)")
+    parser.add_argument("--force", action="store_true", help="rebuild even when the bag is complete")
+    ns = parser.parse_args(sys.argv[1:] if args is None else args)
+    try:
+        result = recover_bag(ns.bag, force=ns.force)
+    except BagError as err:
+        print(f"g2p-recover-bag: error: {err}", file=sys.stderr)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        sys.exit(130)
+    if not result.recovered:
+        print(f"{result.bag}: complete, nothing to recover ({result.message_count} messages)")
+        return
+    print(
+        f"{result.bag}: recovered {result.message_count} messages on {len(result.topic_counts)} topics from "
+        f"{result.chunks} complete chunks"
+    )
+    for topic, count in sorted(result.topic_counts.items()):
+        print(f"  {topic}: {count}")
+    if result.damaged_chunks or result.orphan_messages:
+        print(
+            f"  skipped {result.damaged_chunks} damaged chunks and "
+            f"{result.orphan_messages} messages without a channel"
+        )
+    print(
+        f"  truncated tail: {result.lost_bytes} bytes; original kept as "
+        f"{', '.join(str(b) for b in result.backups)}"
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,6 +1,6 @@
 """Replay planning: which topics to publish where, with which QoS, and when each message is due.
 
-The ROS player (g2p_ros replay) owns the publishers and the sleeping; this module decides everything
+The ROS player (g2p_recorder replay) owns the publishers and the sleeping; this module decides everything
 else, so that it can be tested without ROS.
 """
 

@@ -1,17 +1,26 @@
-"""`report bags/<run>`: a run's summary (JSON and markdown) and figures, from its bag alone."""
+"""A run's summary (JSON and markdown) and figures, from its bag alone; the `g2p-report` command.
+
+    g2p-report bags/<run> [--attempt K] [--out DIR]
+
+Writes `bags/<run>/summary.json` and `bags/<run>/report/` (summary.md and the figures, PNG). A bag that
+cannot be read gives one line on stderr and exit status 2. Needs no ROS.
+"""
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 from g2p.bags import plots
-from g2p.bags.dataset import DEFAULT_RIG_NAMESPACE, AttemptData, RunData, load_run
+from g2p.bags.dataset import AttemptData, RunData, load_run
 from g2p.bags.errors import BagError
 from g2p.bags.runs import report_dir, summary_path
 from g2p.bags.summary import find_joint_limits, find_threshold, summarize, summary_markdown
+from g2p.rig import DEFAULT_NAMESPACE
 
 FIGURES = (
     "fig4a_reward.png",
@@ -42,7 +51,7 @@ class ReportResult:
 def write_report(
     bag: Path | str,
     attempt: int | None = None,
-    rig_namespace: str = DEFAULT_RIG_NAMESPACE,
+    rig_namespace: str = DEFAULT_NAMESPACE,
     out_dir: Path | None = None,
 ) -> ReportResult:
     """Write `summary.json` beside the bag and `report/*.png` plus `report/summary.md`.
@@ -112,3 +121,39 @@ def _shown_attempt(run: RunData, attempt: int | None) -> AttemptData | None:
     if rewarded:
         return max(rewarded, key=lambda a: a.reward_mm)
     return next((a for a in reversed(run.attempts) if len(a.recording)), None)
+
+
+def main(args: list[str] | None = None) -> None:
+    """Entry point of `g2p-report`: write the report of one run; exit 2 when the bag cannot be read."""
+    parser = argparse.ArgumentParser(
+        prog="g2p-report",
+        description="Summary (JSON, markdown) and figures (PNG) of a recorded run, from its bag.",
+    )
+    parser.add_argument("bag", type=Path, help="the run's bag directory (bags/<run-id>)")
+    parser.add_argument(
+        "--attempt",
+        type=int,
+        default=None,
+        help="attempt shown in the tracking and angle-distribution figures (default: the last "
+        "with a desired trajectory, else the best)",
+    )
+    parser.add_argument("--namespace", default=DEFAULT_NAMESPACE, help="namespace of the rig topics")
+    parser.add_argument("--out", type=Path, default=None, help="write here instead of into the bag directory")
+    ns = parser.parse_args(sys.argv[1:] if args is None else args)
+    try:
+        result = write_report(ns.bag, attempt=ns.attempt, rig_namespace=ns.namespace, out_dir=ns.out)
+    except BagError as err:
+        print(f"g2p-report: error: {err}", file=sys.stderr)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        sys.exit(130)
+    print(f"summary: {result.summary_json}")
+    print(f"table:   {result.summary_markdown}")
+    for figure in result.figures:
+        print(f"figure:  {figure}")
+    for name, reason in result.skipped.items():
+        print(f"skipped: {name} ({reason})")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,11 +1,11 @@
-"""The physical rig's I/O, ROS-free: chip drivers on injected buses, the rig description, `HardwareLeg`.
+"""The physical rig's I/O, ROS-free: chip drivers on injected buses, the wiring description, `HardwareLeg`.
 
-    from g2p.hardware import HardwareLeg, load_rig_config, open_devices
-    rig = load_rig_config("rig.yaml")
+    from g2p.hardware import HardwareLeg, load_wiring, open_devices
+    rig = load_wiring("wiring.yaml")
     leg = HardwareLeg(open_devices(rig), rig)     # a g2p.plant.Plant; outputs off until reset()
 
 Device classes take their bus object (spidev-, smbus2- or gpiod-like) as an argument; only
-`g2p.hardware.devices.open_devices` imports spidev, smbus2 and gpiod, lazily. `g2p.hardware.fakes` has
+`g2p.hardware.devices.open_devices` imports spidev, smbus2 and gpiod, lazily. `g2p.hardware.fake_chips` has
 chips that answer byte for byte, backed by the MuJoCo leg, for tests and benches without a Pi.
 docs/DRIVER.md describes the wiring.
 """
@@ -26,7 +26,8 @@ from g2p.hardware.ls7366r import LS7366R, BeltOdometer
 from g2p.hardware.outputs import MotorOutputs, PwmOutputs
 from g2p.hardware.pca9685 import PCA9685
 from g2p.hardware.plant import HardwareCounters, HardwareLeg, HardwareLegConfig
-from g2p.hardware.rig_config import (
+from g2p.hardware.sysfs_pwm import SysfsPwmChannel, SysfsPwmGroup
+from g2p.hardware.wiring import (
     BeltConfig,
     CurrentSensorsConfig,
     EncoderConfig,
@@ -34,12 +35,11 @@ from g2p.hardware.rig_config import (
     MotorEnableConfig,
     PwmBackend,
     PwmConfig,
-    RigConfig,
     SpiConfig,
-    load_rig_config,
-    rig_config_from_dict,
+    WiringConfig,
+    load_wiring,
+    wiring_from_dict,
 )
-from g2p.hardware.sysfs_pwm import SysfsPwmChannel, SysfsPwmGroup
 
 __all__ = [
     "AS5048A",
@@ -71,14 +71,14 @@ __all__ = [
     "PwmBackend",
     "PwmConfig",
     "PwmOutputs",
-    "RigConfig",
     "RigDevices",
     "SimulatedClock",
     "SpiConfig",
     "SysfsPwmChannel",
     "SysfsPwmGroup",
+    "WiringConfig",
     "build_devices",
-    "load_rig_config",
+    "load_wiring",
     "open_devices",
-    "rig_config_from_dict",
+    "wiring_from_dict",
 ]

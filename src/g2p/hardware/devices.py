@@ -3,7 +3,7 @@
 `open_devices(rig)` opens /dev/spidevN.M (spidev), /dev/i2c-N (smbus2), the enable line (gpiod 2.x) and
 sysfs PWM, importing those libraries only when called, so the rest of the package imports anywhere.
 `build_devices(rig, buses)` does the chip set-up for any bus factory: the same code runs against the
-physics-backed fakes of `g2p.hardware.fakes`.
+physics-backed fake rig of `g2p.hardware.fake_rig`.
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ from g2p.hardware.ina219 import INA219
 from g2p.hardware.ls7366r import LS7366R
 from g2p.hardware.outputs import MotorOutputs, PwmOutputs
 from g2p.hardware.pca9685 import PCA9685
-from g2p.hardware.rig_config import MotorEnableConfig, PwmBackend, RigConfig, SpiConfig
 from g2p.hardware.sysfs_pwm import SysfsPwmGroup
+from g2p.hardware.wiring import MotorEnableConfig, PwmBackend, SpiConfig, WiringConfig
 
 SPI_MODE_AS5048A = 1  # CPOL 0, CPHA 1
 SPI_MODE_LS7366R = 0  # CPOL 0, CPHA 0
@@ -93,7 +93,7 @@ def _setting_up(name: str) -> Iterator[None]:
         raise DeviceError(text if text.startswith(name) else f"{name}: {text}") from err
 
 
-def build_devices(rig: RigConfig, buses: BusFactory) -> RigDevices:
+def build_devices(wiring: WiringConfig, buses: BusFactory) -> RigDevices:
     """Set every chip up as `rig` describes, on the buses `buses` opens; motor outputs end off.
 
     The outputs first (a PWM chip keeps its last duty cycles across a crash of the process that set
@@ -107,11 +107,11 @@ def build_devices(rig: RigConfig, buses: BusFactory) -> RigDevices:
     """
     try:
         line = None
-        if rig.motor_enable is not None:
-            m = rig.motor_enable
+        if wiring.motor_enable is not None:
+            m = wiring.motor_enable
             with _setting_up(f"motor enable line ({m.chip} line {m.line})"):
                 line = buses.output_line(m)
-        p = rig.pwm
+        p = wiring.pwm
         pwm: PwmOutputs
         if p.backend is PwmBackend.PCA9685:
             pca = PCA9685(
@@ -135,7 +135,7 @@ def build_devices(rig: RigConfig, buses: BusFactory) -> RigDevices:
                 e.model,
                 name=f"{joint} encoder (spi{e.spi.bus}.{e.spi.chip_select})",
             )
-            for joint, e in (("proximal", rig.encoders.proximal), ("distal", rig.encoders.distal))
+            for joint, e in (("proximal", wiring.encoders.proximal), ("distal", wiring.encoders.distal))
         )
         for enc in encoders:
             with _setting_up(enc.name):
@@ -143,13 +143,13 @@ def build_devices(rig: RigConfig, buses: BusFactory) -> RigDevices:
                 magnet = enc.read_magnet()
             if not magnet.ok:
                 raise DeviceError(f"{enc.name}: magnet not usable: {magnet}")
-        b = rig.belt
+        b = wiring.belt
         belt = LS7366R(
             buses.spi(b.spi, SPI_MODE_LS7366R), name=f"belt counter (spi{b.spi.bus}.{b.spi.chip_select})"
         )
         with _setting_up(belt.name):
             belt.configure(b.quadrature)
-        cs = rig.current_sensors
+        cs = wiring.current_sensors
         i2c = buses.i2c(cs.i2c_bus)
         sensors = tuple(
             INA219(
@@ -275,11 +275,11 @@ class LinuxBuses:
         self._lines.clear()
 
 
-def open_devices(rig: RigConfig) -> RigDevices:
+def open_devices(wiring: WiringConfig) -> RigDevices:
     """Open and set up the real devices of the rig described by `rig` (on the Raspberry Pi).
 
     Raises:
         DeviceError: a library is missing, a bus cannot be opened, or a chip answers wrongly.
         OSError: a bus transaction failed.
     """
-    return build_devices(rig, LinuxBuses())
+    return build_devices(wiring, LinuxBuses())

@@ -7,7 +7,7 @@ from typing import Protocol
 import numpy as np
 
 from g2p.hardware.buses import OutputLine
-from g2p.hardware.rig_config import PwmConfig
+from g2p.hardware.wiring import PwmConfig
 from g2p.plant import FloatArray
 
 

@@ -31,7 +31,7 @@ from g2p.hardware.clock import Clock, MonotonicClock
 from g2p.hardware.devices import RigDevices
 from g2p.hardware.errors import EncoderErrorFlag, EncoderParityError, HardwareError, HardwareFault
 from g2p.hardware.ls7366r import BeltOdometer
-from g2p.hardware.rig_config import RigConfig
+from g2p.hardware.wiring import WiringConfig
 from g2p.plant import N_JOINTS, N_MOTORS, NOMINAL_TICK_HZ, FloatArray, TickSample
 from g2p.safety import BASELINE_ACTIVATION, check_activation, clamp_activation
 
@@ -47,7 +47,7 @@ def _named(device: str, err: Exception) -> str:
 
 @dataclass(frozen=True)
 class HardwareLegConfig:
-    """Timing, fault handling and settling of the hardware plant (the wiring is in `RigConfig`).
+    """Timing, fault handling and settling of the hardware plant (the wiring is in `WiringConfig`).
 
     Attributes:
         tick_hz: rate of the absolute-deadline tick loop (Hz); the rig ran at about 78 Hz.
@@ -56,7 +56,7 @@ class HardwareLegConfig:
         max_consecutive_faults: ticks in a row with a failed read or write after which the plant latches a
             HardwareFault (outputs to baseline, every later step raises).
         retries: immediate re-reads (or re-writes) of a device within a tick after a failure.
-        dither_amplitude: reset's hip dither: peak activation added to baseline (0 disables the dither).
+        dither_amplitude: reset's hip dither: peak activation added to baseline (dimensionless; 0: none).
         dither_hz: frequency of the dither (Hz), well below tick_hz / 4.
         dither_s: duration of the dither, its amplitude falling linearly to 0 (s).
         settle_velocity_rad_s: reset counts the joints as still below this speed (rad/s).
@@ -230,7 +230,7 @@ class HardwareLeg:
 
     Args:
         devices: the devices, set up, outputs off (`g2p.hardware.devices.open_devices` or the fakes).
-        rig: the rig description (belt calibration).
+        wiring: the wiring description (belt calibration).
         config: timing, fault and settling settings.
         clock: the loop's clock; None uses the monotonic clock.
 
@@ -241,12 +241,12 @@ class HardwareLeg:
     def __init__(
         self,
         devices: RigDevices,
-        rig: RigConfig,
+        wiring: WiringConfig,
         config: HardwareLegConfig | None = None,
         clock: Clock | None = None,
     ) -> None:
         self.config = cfg = config if config is not None else HardwareLegConfig()
-        self.rig = rig
+        self.wiring = wiring
         self.counters = HardwareCounters()
         self._dev = devices
         self._outputs = devices.outputs
@@ -254,7 +254,9 @@ class HardwareLeg:
         self._period = 1.0 / cfg.tick_hz
         self._sample_period = 1.0 / cfg.current_sample_hz
         self._baseline = np.full(N_MOTORS, cfg.baseline_activation)
-        self._odometer = BeltOdometer(rig.belt.counts_per_rev, rig.belt.drum_radius_mm, rig.belt.direction)
+        self._odometer = BeltOdometer(
+            wiring.belt.counts_per_rev, wiring.belt.drum_radius_mm, wiring.belt.direction
+        )
         self._io = threading.RLock()  # one bus transaction group at a time: ticks, watchdog, close
         self._closed = False
         self._running = False

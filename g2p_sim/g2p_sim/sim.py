@@ -11,8 +11,8 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 
 from g2p.config import ConfigError
+from g2p.rig import DEFAULT_NAMESPACE
 from g2p.sim import MujocoLeg, MujocoLegConfig
-from g2p_ros.contract import DEFAULT_NAMESPACE
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
 from g2p_ros.signals import init_with_stop_event
@@ -46,13 +46,13 @@ class SimNode(Node):
         super().__init__("sim", namespace=DEFAULT_NAMESPACE)
         self.config = declare_config(self, SimConfig)
         leg_config = declare_config(self, MujocoLegConfig, "leg.")
-        rig_config = declare_config(self, RigServerConfig, "rig.")
+        server_config = declare_config(self, RigServerConfig, "rig.")
         fast = self.config.time_mode is TimeMode.FAST
         self.rig = RigServer(
             self,
             MujocoLeg(leg_config),
             Pacing.ON_DEMAND if fast else Pacing.WALL_CLOCK,
-            rig_config,
+            server_config,
             sim_time=fast,
             publish_clock=True,
         )
@@ -61,7 +61,7 @@ class SimNode(Node):
             {
                 **config_as_dict(self.config),
                 "leg": config_as_dict(leg_config),
-                "rig": config_as_dict(rig_config),
+                "rig": config_as_dict(server_config),
             },
         )
         self.rig.start()

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from g2p_ros.bringup_main import _node_environment
-from g2p_ros.graph import PROFILE_VARIABLES, profile_variable
+from g2p_bringup.bringup import _node_environment
+from g2p_bringup.graph import PROFILE_VARIABLES, profile_variable
 
 PROBE = "import rclpy; rclpy.init(); rclpy.create_node('profile_probe').destroy_node(); rclpy.shutdown()"
 

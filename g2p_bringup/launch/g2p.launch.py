@@ -1,10 +1,10 @@
-"""Launch the G2P graph on a full ROS 2 install, from the same description as `ros2 run g2p_ros bringup`.
+"""Launch the G2P graph on a full ROS 2 install, from the same description as `ros2 run g2p_bringup bringup`.
 
-    ros2 launch g2p_ros g2p.launch.py rig:=sim run_id:=my-run bags_dir:=bags
+    ros2 launch g2p_bringup g2p.launch.py rig:=sim run_id:=my-run bags_dir:=bags
 
 Every node of config/graph.yaml starts with its parameters and remappings, all at once as `bringup` starts
 them; the learner begins only once the recorder hears the rig (its `recorder_node` parameter). Unlike
-`bringup`, launch does not write the report; run `ros2 run g2p_ros report bags/<run_id>` after.
+`bringup`, launch does not write the report; run `g2p-report bags/<run_id>` after.
 """
 
 import os
@@ -19,7 +19,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from g2p.bags.runs import new_run_id
-from g2p_ros.graph import load_graph, profile_environment
+from g2p_bringup.graph import load_graph, profile_environment
 
 
 def _nodes(context, *args, **kwargs):
@@ -50,7 +50,7 @@ def _nodes(context, *args, **kwargs):
 
 def generate_launch_description():
     """The graph of config/graph.yaml as launch actions."""
-    share = Path(get_package_share_directory("g2p_ros"))
+    share = Path(get_package_share_directory("g2p_bringup"))
     default_graph = str(share / "config" / "graph.yaml")
     profile = profile_environment(dict(os.environ), share / "config" / "fastdds_discovery.xml")
     return LaunchDescription(

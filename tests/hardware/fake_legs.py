@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from g2p.hardware import HardwareLeg, HardwareLegConfig, RigConfig, SimulatedClock
-from g2p.hardware.fakes import FakeRig, FakeRigConfig, fake_devices
+from g2p.hardware import HardwareLeg, HardwareLegConfig, SimulatedClock, WiringConfig
+from g2p.hardware.fake_rig import FakeRig, FakeRigConfig, fake_devices
 
 # The watchdog thread reads the clock; with a simulated clock, time only moves inside ticks, so it
 # would never trip: leave it off and test it on the monotonic clock.
@@ -11,14 +11,14 @@ FAST = HardwareLegConfig(step_watchdog_s=0.0)
 
 
 def fake_leg(
-    rig: RigConfig | None = None,
+    wiring: WiringConfig | None = None,
     config: HardwareLegConfig = FAST,
     fake_config: FakeRigConfig | None = None,
 ) -> tuple[HardwareLeg, FakeRig]:
     """A HardwareLeg on fake buses backed by the MuJoCo leg (air by default), on a simulated clock."""
-    rig = rig if rig is not None else RigConfig()
-    fake, devices = fake_devices(rig, fake_config, SimulatedClock())
-    return HardwareLeg(devices, rig, config, fake.clock), fake
+    wiring = wiring if wiring is not None else WiringConfig()
+    fake, devices = fake_devices(wiring, fake_config, SimulatedClock())
+    return HardwareLeg(devices, wiring, config, fake.clock), fake
 
 
 def hardware_leg_on_fake_buses() -> HardwareLeg:

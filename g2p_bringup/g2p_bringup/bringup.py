@@ -1,4 +1,4 @@
-"""`ros2 run g2p_ros bringup`: start the graph described in config/graph.yaml, one process per node.
+"""`ros2 run g2p_bringup bringup`: start the graph described in config/graph.yaml, one process per node.
 
 All nodes start at once; the learner starts its run only once the rig serves it and the recorder has
 subscribed to the rig's topics (its `recorder_node` parameter), so nothing goes unrecorded. When the main
@@ -6,7 +6,7 @@ node (the learner) exits, or on Ctrl-C / SIGTERM, the processes are stopped in a
 learner first (it cancels its goal, the rig drops to baseline), then the rig, then the recorder, which
 finalizes the bag. Then the run's report is written beside the bag.
 
-    ros2 run g2p_ros bringup [--rig sim|sim_realtime|sim_air] [--set learner.search.threshold_mm=64.0] ...
+    ros2 run g2p_bringup bringup [--rig sim|sim_realtime|sim_air] [--set learner.search.threshold_mm=64.0] ...
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 from rclpy.utilities import remove_ros_args
 
 from g2p.bags.runs import new_run_id
-from g2p_ros.graph import Graph, GraphError, NodeSpec, load_graph, profile_environment
+from g2p_bringup.graph import Graph, GraphError, NodeSpec, load_graph, profile_environment
 from g2p_ros.signals import init_with_stop_event
 
 STOP_TIMEOUT_S = 20.0
@@ -42,7 +42,7 @@ def _parse(argv: list[str]) -> argparse.Namespace:
         "--graph",
         type=Path,
         default=None,
-        help="graph description (default: the installed g2p_ros config/graph.yaml)",
+        help="graph description (default: the installed g2p_bringup config/graph.yaml)",
     )
     parser.add_argument(
         "--rig", default=None, help="which rig of the description to start (default: the first)"
@@ -74,7 +74,7 @@ def _overrides(settings: list[str]) -> dict[str, dict[str, Any]]:
 def _node_environment() -> dict[str, str]:
     """The nodes' environment: ours, with the graph's Fast DDS profile unless one is set already."""
     env = dict(os.environ)
-    profile = Path(get_package_share_directory("g2p_ros")) / "config" / "fastdds_discovery.xml"
+    profile = Path(get_package_share_directory("g2p_bringup")) / "config" / "fastdds_discovery.xml"
     env.update(profile_environment(env, profile))
     return env
 
@@ -154,14 +154,16 @@ def run(graph: Graph, log_dir: Path, stop: threading.Event) -> int:
 
 
 def main(args: list[str] | None = None) -> None:
-    """Entry point of `ros2 run g2p_ros bringup`."""
+    """Entry point of `ros2 run g2p_bringup bringup`."""
     argv = sys.argv if args is None else args
     options = _parse(argv)
     stop = init_with_stop_event(argv)
     code = 1
     try:
         run_id = options.run_id or new_run_id(datetime.now(timezone.utc), np.random.default_rng())
-        graph_path = options.graph or Path(get_package_share_directory("g2p_ros")) / "config" / "graph.yaml"
+        graph_path = (
+            options.graph or Path(get_package_share_directory("g2p_bringup")) / "config" / "graph.yaml"
+        )
         graph = load_graph(
             graph_path, options.rig, {"run_id": run_id, "bags_dir": options.bags_dir}, _overrides(options.set)
         )
@@ -175,8 +177,7 @@ def main(args: list[str] | None = None) -> None:
         code = run(graph, log_dir, stop)
         bag = Path(options.bags_dir) / run_id
         if not options.no_report and (bag / "metadata.yaml").exists():
-            report = Path(get_package_prefix("g2p_ros")) / "lib" / "g2p_ros" / "report"
-            subprocess.run([str(report), str(bag)], check=False)
+            subprocess.run([sys.executable, "-m", "g2p.bags.report", str(bag)], check=False)  # g2p-report
     except (GraphError, PackageNotFoundError) as err:
         print(f"bringup: {err}", file=sys.stderr)
         code = 2

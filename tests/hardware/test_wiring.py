@@ -7,21 +7,21 @@ from pathlib import Path
 import pytest
 
 from g2p.config import ConfigError
-from g2p.hardware import PwmBackend, RigConfig, load_rig_config, rig_config_from_dict
+from g2p.hardware import PwmBackend, WiringConfig, load_wiring, wiring_from_dict
 from g2p.hardware.as5048a import EncoderModel
 
-EXAMPLE = Path(__file__).resolve().parents[2] / "g2p_driver" / "config" / "rig.yaml"
+EXAMPLE = Path(__file__).resolve().parents[2] / "g2p_driver" / "config" / "wiring.yaml"
 
 
 def test_the_shipped_example_is_valid_and_matches_the_defaults() -> None:
-    rig = load_rig_config(EXAMPLE)
-    assert rig == RigConfig()
-    assert rig.encoders.distal.spi.chip_select == 1
-    assert rig.encoders.proximal.model is EncoderModel.AS5048A
-    assert rig.pwm.backend is PwmBackend.PCA9685 and rig.pwm.address == 0x40
-    assert rig.current_sensors.addresses == (0x41, 0x44, 0x45)
-    assert rig.pwm.duty(0.0) == pytest.approx(0.1) and rig.pwm.duty(1.0) == pytest.approx(0.9)
-    assert rig.pwm.activation(rig.pwm.duty(0.15)) == pytest.approx(0.15)
+    wiring = load_wiring(EXAMPLE)
+    assert wiring == WiringConfig()
+    assert wiring.encoders.distal.spi.chip_select == 1
+    assert wiring.encoders.proximal.model is EncoderModel.AS5048A
+    assert wiring.pwm.backend is PwmBackend.PCA9685 and wiring.pwm.address == 0x40
+    assert wiring.current_sensors.addresses == (0x41, 0x44, 0x45)
+    assert wiring.pwm.duty(0.0) == pytest.approx(0.1) and wiring.pwm.duty(1.0) == pytest.approx(0.9)
+    assert wiring.pwm.activation(wiring.pwm.duty(0.15)) == pytest.approx(0.15)
 
 
 @pytest.mark.parametrize(
@@ -49,23 +49,23 @@ def test_the_shipped_example_is_valid_and_matches_the_defaults() -> None:
 )
 def test_errors_name_the_field(data: dict[str, object], field: str) -> None:
     with pytest.raises(ConfigError, match=field.replace("(", r"\(").replace("+", r"\+")):
-        rig_config_from_dict(data)
+        wiring_from_dict(data)
 
 
 def test_null_enable_line_and_the_sysfs_backend() -> None:
-    rig = rig_config_from_dict(
+    wiring = wiring_from_dict(
         {"motor_enable": None, "pwm": {"backend": "sysfs", "channels": [0, 1, 2], "frequency_hz": 20000.0}}
     )
-    assert rig.motor_enable is None and rig.pwm.backend is PwmBackend.SYSFS
+    assert wiring.motor_enable is None and wiring.pwm.backend is PwmBackend.SYSFS
 
 
 def test_unreadable_or_malformed_files(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="cannot read"):
-        load_rig_config(tmp_path / "missing.yaml")
+        load_wiring(tmp_path / "missing.yaml")
     bad = tmp_path / "bad.yaml"
     bad.write_text("pwm: [1, 2\n")
     with pytest.raises(ConfigError, match="not valid YAML"):
-        load_rig_config(bad)
+        load_wiring(bad)
     bad.write_text("- 1\n")
     with pytest.raises(ConfigError, match="mapping"):
-        load_rig_config(bad)
+        load_wiring(bad)

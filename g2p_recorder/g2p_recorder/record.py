@@ -1,4 +1,4 @@
-"""`ros2 run g2p_ros record`: record the graph's topics into `bags/<run-id>/`, like `ros2 bag record -a`.
+"""`ros2 run g2p_recorder record`: record the graph's topics into `bags/<run-id>/`, like `ros2 bag record -a`.
 
 The node polls the graph for topics, subscribes to each new one (raw, QoS adapted to its publishers'
 offers) and hands the serialized messages to `g2p.bags.BagWriter`, stamped with the node clock (sim
@@ -30,11 +30,10 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.subscription import Subscription
 from rclpy.topic_endpoint_info import TopicEndpointInfo
-from rosbags.interfaces import Qos
 
 from g2p.bags import BagError, InterfaceError, InterfaceLibrary, TopicSpec, TypeRegistry, ament_share_dirs
 from g2p.bags.config import RecorderConfig
-from g2p.bags.qos import EndpointQos, make_qos, recording_qos
+from g2p.bags.qos import EndpointQos, Qos, make_qos, recording_qos
 from g2p.bags.writer import create_run_bag
 from g2p.config import ConfigError
 from g2p_ros.params import config_as_dict, declare_config, publish_config

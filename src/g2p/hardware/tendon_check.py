@@ -1,4 +1,4 @@
-"""Bring-up check: does each tendon, pulled alone at low activation, turn the joints the Fig 1d way?
+"""The tendon check: does each tendon, pulled alone at low activation, turn the joints the Fig 1d way?
 
 Run it on a new or rewired rig before any babbling: a reversed encoder, swapped motor channels or a
 tendon on the wrong side of a pulley would otherwise teach the inverse map nonsense, and a learning run

@@ -1,6 +1,6 @@
 """The physical rig described in one YAML file: buses, chip selects, addresses, calibration, PWM map.
 
-    rig = load_rig_config("g2p_driver/config/rig.yaml")
+    rig = load_wiring("g2p_driver/config/wiring.yaml")
 
 The file's sections map 1:1 onto the frozen dataclasses below (unknown or missing keys are errors that
 name the key). Every value is validated; a `ConfigError` names the offending field by its dotted path,
@@ -241,7 +241,7 @@ class CurrentSensorsConfig:
 
 
 @dataclass(frozen=True)
-class RigConfig:
+class WiringConfig:
     """The physical rig: what is wired where and how raw readings become the plant's units.
 
     Attributes:
@@ -271,16 +271,16 @@ class RigConfig:
         require(len(set(seen)) == 3, "encoders", f"the two encoders and the belt share a chip select: {seen}")
 
 
-def rig_config_from_dict(data: dict[str, Any]) -> RigConfig:
-    """Build and validate a RigConfig from a mapping shaped like the YAML file.
+def wiring_from_dict(data: dict[str, Any]) -> WiringConfig:
+    """Build and validate a WiringConfig from a mapping shaped like the YAML file.
 
     Raises:
         ConfigError: unknown or missing keys, wrong types or invalid values (the message names the field).
     """
-    return _build(RigConfig, data, "")
+    return _build(WiringConfig, data, "")
 
 
-def load_rig_config(path: str | Path) -> RigConfig:
+def load_wiring(path: str | Path) -> WiringConfig:
     """Read the rig's YAML file.
 
     Raises:
@@ -289,14 +289,14 @@ def load_rig_config(path: str | Path) -> RigConfig:
     try:
         text = Path(path).read_text()
     except OSError as err:
-        raise ConfigError(f"rig_config: cannot read {path}: {err}") from err
+        raise ConfigError(f"wiring: cannot read {path}: {err}") from err
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as err:
-        raise ConfigError(f"rig_config: {path} is not valid YAML: {err}") from err
+        raise ConfigError(f"wiring: {path} is not valid YAML: {err}") from err
     if not isinstance(data, dict):
-        raise ConfigError(f"rig_config: {path} must hold a mapping of sections")
-    return rig_config_from_dict(data)
+        raise ConfigError(f"wiring: {path} must hold a mapping of sections")
+    return wiring_from_dict(data)
 
 
 def _build(cls: type[T], data: object, path: str) -> T:

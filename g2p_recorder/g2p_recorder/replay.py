@@ -1,4 +1,4 @@
-"""`ros2 run g2p_ros replay bags/<run>`: republish a bag's topics with their recorded timing and QoS.
+"""`ros2 run g2p_recorder replay bags/<run>`: republish a bag's topics with their recorded timing and QoS.
 
 Options like `ros2 bag play`: --rate, --clock [HZ], --topics, --remap from:=to, --loop, --delay; and
 --wait-for-subscribers S to start only once every replayed topic has a subscriber (or S seconds
@@ -26,8 +26,8 @@ from rosgraph_msgs.msg import Clock
 from g2p.bags import BagError, BagReader
 from g2p.bags.replay import ReplayOptions, ReplayTopic, Timeline, parse_remap, plan_topics
 from g2p.config import ConfigError
+from g2p_recorder.record import message_class, qos_profile
 from g2p_ros import contract
-from g2p_ros.recorder_node import message_class, qos_profile
 from g2p_ros.signals import init_with_stop_event
 
 # A message due less than this ahead is published at once rather than slept for (s).
