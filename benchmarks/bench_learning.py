@@ -42,6 +42,7 @@ from g2p.learner import Learner, LearnerConfig
 from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig
 from g2p.rig import PlantRig
 from g2p.search import SearchConfig
+from g2p.seeds import seed_streams
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, MujocoLeg, MujocoLegConfig
 
 PAPER = {
@@ -145,7 +146,7 @@ def _air_learner(seed: int, setup: Setup) -> tuple[Learner, PlantRig, LimitCycle
 def air(seed: int, setup: Setup = Setup()) -> dict[str, Any]:
     """One trajectory in the air, refined 5 times (paper Fig 5a)."""
     learner, rig, cycle = _air_learner(seed, setup)
-    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(4)[3])
+    rng = seed_streams(seed).tracking
     outcomes = refine_one_trajectory(learner, rig, random_features(rng, cycle, 1)[0], cycle, refinements=5)
     mse = [o.tracking.mse_deg2 for o in outcomes]
     return {"seed": seed, "mse_deg2": mse, "ratio": mse[-1] / mse[0]}
@@ -154,7 +155,7 @@ def air(seed: int, setup: Setup = Setup()) -> dict[str, Any]:
 def general(seed: int, setup: Setup = Setup()) -> dict[str, Any]:
     """Generalization to unseen trajectories (paper Fig 5b)."""
     learner, rig, cycle = _air_learner(seed, setup)
-    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(4)[3])
+    rng = seed_streams(seed).tracking
     train, test = random_features(rng, cycle, 30), random_features(rng, cycle, 30)
     g = generalization(learner, rig, cycle, train[: setup.n_train], test)
     return {
@@ -169,7 +170,7 @@ def general(seed: int, setup: Setup = Setup()) -> dict[str, Any]:
 def bound(seed: int, setup: Setup = Setup()) -> dict[str, Any]:
     """The generalization test trajectories tracked by maps fitted on their own data (see the docstring)."""
     learner, rig, cycle = _air_learner(seed, setup)
-    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(4)[3])
+    rng = seed_streams(seed).tracking
     _train, test = random_features(rng, cycle, 30), random_features(rng, cycle, 30)  # as `general` draws
     pre = learner.config.preprocess
     x, y = learner.dataset.arrays()

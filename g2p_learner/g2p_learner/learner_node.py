@@ -15,6 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -27,16 +28,25 @@ from std_msgs.msg import Header
 from g2p.attempt import AttemptOutcome
 from g2p.bags.runs import new_run_id
 from g2p.config import require, require_positive
-from g2p.experiments import TreadmillRun, evaluate_fixed_map, random_features, treadmill_result
+from g2p.experiments import (
+    AttemptReport,
+    Generalization,
+    TrackingReport,
+    TrajectoryRefinement,
+    TreadmillRun,
+    random_features,
+    treadmill_result,
+)
 from g2p.inverse_map import FitReport
 from g2p.learner import Learner, LearnerConfig
 from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig, check_features
 from g2p.plant import Recording
-from g2p.rig import ProgressCallback, RigCancelled, RigError
+from g2p.rig import DEFAULT_NAMESPACE, ProgressCallback, Rig, RigCancelled, RigError
 from g2p.search import SearchConfig
+from g2p.seeds import seed_streams
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_interfaces.msg import InverseMapWeights, LearnerEvent, NamedArray
-from g2p_ros.contract import DEFAULT_NAMESPACE, RIG_SAMPLE_TOPICS, ServerWatch, action_name, wait_all
+from g2p_ros.contract import RIG_SAMPLE_TOPICS, ServerWatch, action_name, wait_all
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_client import RigClient
 
@@ -63,8 +73,10 @@ class LearnerNodeConfig:
     Attributes:
         run_id: identifier of the next learning run; "" generates one (UTC time and a random suffix).
         bag_path: where a recorder records this node's runs, reported in the learn result ("" = none).
-        air_feature_low: lowest feature of the free-movement (track) trajectories (paper: 0.2).
-        air_feature_high: highest feature of the free-movement (track) trajectories (paper: 0.8).
+        air_feature_low: lowest feature of the free-movement (track) trajectories (feature units; paper:
+            0.2).
+        air_feature_high: highest feature of the free-movement (track) trajectories (feature units; paper:
+            0.8).
         rig_timeout_s: how long a goal waits for the rig's action and service (and the recorder) (s).
         recorder_node: name of the recorder node in this namespace: every goal first waits until it
             subscribes to the rig's sample topics, so the recorded run is whole ("" = do not wait).
@@ -105,6 +117,28 @@ class LearnerNodeConfig:
             feature_low=self.cycle.feature_low,
             feature_high=self.cycle.feature_high,
         )
+
+
+@dataclass(frozen=True)
+class _Step:
+    """The next attempt of an experiment, as its attempt_start event announces it."""
+
+    phase: str
+    number: int
+    features: np.ndarray | None = None
+
+
+class Experiment(Protocol):
+    """A core experiment stepped one attempt at a time (g2p.experiments)."""
+
+    @property
+    def finished(self) -> bool:
+        """Whether the experiment is over."""
+
+    def next_attempt(
+        self, rig: Rig, progress: ProgressCallback | None = None, cancel: threading.Event | None = None
+    ) -> AttemptReport | TrackingReport:
+        """Run the next step on the rig and report it."""
 
 
 class GoalRejected(ValueError):
@@ -285,14 +319,20 @@ class LearnerNode(Node):
     def _execute_attempt(self, goal_handle: ServerGoalHandle) -> Attempt.Result:
         goal = goal_handle.request
         cycle = replace(self.config.cycle, n_cycles=goal.cycles) if goal.cycles else self.config.cycle
-        outcome, fit = self._attempt(
-            goal_handle,
-            np.asarray(goal.features),
-            cycle,
-            "attempt",
-            not goal.skip_refinement,
-            number=self.learner.refinements + 1,
-        )
+        features = np.asarray(goal.features)
+        number = self.learner.refinements + 1
+        self._event("attempt_start", phase="attempt", attempt=number, features=features)
+
+        def progress(done: int, total: int) -> None:
+            goal_handle.publish_feedback(
+                Attempt.Feedback(stage="playing", ticks_done=done, ticks_total=total)
+            )
+
+        refine = not goal.skip_refinement
+        outcome, fit = self.learner.attempt(self.rig, features, cycle, refine, progress, self._cancel)
+        self._attempt_end("attempt", number, outcome)
+        if fit is not None:
+            self._publish_map(fit)
         goal_handle.succeed()
         return Attempt.Result(
             reward_mm=outcome.reward_mm,
@@ -301,29 +341,6 @@ class LearnerNode(Node):
             tracking_rmse_rad=outcome.tracking.rmse_rad,
             refined=fit is not None,
         )
-
-    def _attempt(
-        self,
-        goal_handle: ServerGoalHandle,
-        features: np.ndarray,
-        cycle: LimitCycleConfig,
-        phase: str,
-        refine: bool,
-        number: int,
-    ) -> tuple[AttemptOutcome, FitReport | None]:
-        self._event("attempt_start", phase=phase, attempt=number, features=features)
-
-        def progress(done: int, total: int) -> None:
-            if isinstance(goal_handle.request, Attempt.Goal):
-                goal_handle.publish_feedback(
-                    Attempt.Feedback(stage="playing", ticks_done=done, ticks_total=total)
-                )
-
-        outcome, fit = self.learner.attempt(self.rig, features, cycle, refine, progress, self._cancel)
-        self._attempt_end(phase, number, outcome)
-        if fit is not None:
-            self._publish_map(fit)
-        return outcome, fit
 
     def _execute_learn(self, goal_handle: ServerGoalHandle) -> Learn.Result:
         goal = goal_handle.request
@@ -357,12 +374,8 @@ class LearnerNode(Node):
 
             fit = self._babble(goal.babbling_duration_s or None, progress)
         run = TreadmillRun(self.learner, search, self.config.cycle, self.config.learner.seed)
-        while not run.finished:
-            self._check_cancel(goal_handle)
-            number = len(run.reports) + 1
-            phase = run.search.phase.value
-            self._event("attempt_start", phase=phase, attempt=number)
-            report = run.next_attempt(self.rig, cancel=self._cancel)
+
+        def attempt_done(report: AttemptReport) -> None:
             self._attempt_end(
                 report.phase.value,
                 report.number,
@@ -370,8 +383,6 @@ class LearnerNode(Node):
                 sigma=report.sigma,
                 best=report.best_reward_mm,
             )
-            if report.fit is not None:
-                self._publish_map(report.fit)
             goal_handle.publish_feedback(
                 Learn.Feedback(
                     phase=report.phase.value,
@@ -382,6 +393,13 @@ class LearnerNode(Node):
                     sigma=report.sigma or 0.0,
                 )
             )
+
+        self._run_steps(
+            goal_handle,
+            run,
+            lambda: _Step(run.search.phase.value, len(run.reports) + 1),
+            attempt_done,
+        )
         result = treadmill_result(run, fit)
         summary = {
             "crossed_threshold": result.crossed_threshold,
@@ -419,44 +437,64 @@ class LearnerNode(Node):
     def _execute_track(self, goal_handle: ServerGoalHandle) -> Track.Result:
         goal = goal_handle.request
         cycle = self.config.air_cycle
-        rng = np.random.default_rng(np.random.SeedSequence(self.config.learner.seed).spawn(4)[3])
-
-        def feedback(stage: str, index: int, outcome_mse: float) -> None:
-            goal_handle.publish_feedback(
-                Track.Feedback(stage=stage, index=index, tracking_mse_deg2=outcome_mse)
-            )
-
+        rng = seed_streams(self.config.learner.seed).tracking
+        experiment: TrajectoryRefinement | Generalization
         if goal.mode == Track.Goal.MODE_REFINE_ONE:
             features = np.asarray(goal.features) if len(goal.features) else random_features(rng, cycle, 1)[0]
-            refinements = goal.refinements or 5
-            mse = []
-            for k in range(refinements + 1):
-                self._check_cancel(goal_handle)
-                outcome, _ = self._attempt(goal_handle, features, cycle, "tracking", k < refinements, k + 1)
-                mse.append(outcome.tracking.mse_deg2)
-                feedback("training", k + 1, outcome.tracking.mse_deg2)
-            goal_handle.succeed()
-            return Track.Result(attempt_mse_deg2=mse)
+            experiment = TrajectoryRefinement(self.learner, features, cycle, goal.refinements or 5)
+        else:
+            train = random_features(rng, cycle, goal.train_trajectories or 30)
+            test = random_features(rng, cycle, goal.test_trajectories or 30)
+            experiment = Generalization(self.learner, cycle, train, test)
 
-        train = random_features(rng, cycle, goal.train_trajectories or 30)
-        test = random_features(rng, cycle, goal.test_trajectories or 30)
-        babbling_map = self.learner.frozen_map()
-        for k, features in enumerate(train, start=1):
-            self._check_cancel(goal_handle)
-            outcome, _ = self._attempt(goal_handle, features, cycle, "tracking", True, k)
-            feedback("training", k, outcome.tracking.mse_deg2)
-        before, after = [], []
-        for k, features in enumerate(test, start=1):
-            self._check_cancel(goal_handle)
-            (b,) = evaluate_fixed_map(babbling_map, self.rig, features[None], cycle, self.learner.lead_ticks)
-            (a,) = evaluate_fixed_map(
-                self.learner.inverse_map, self.rig, features[None], cycle, self.learner.lead_ticks
+        def upcoming() -> _Step | None:
+            """A training attempt is announced and recorded as one; the test tracking is not."""
+            if isinstance(experiment, Generalization):
+                if experiment.stage != "training":
+                    return None
+                return _Step("tracking", experiment.trained + 1, experiment.train[experiment.trained])
+            return _Step("tracking", len(experiment.outcomes) + 1, experiment.features)
+
+        def step_done(report: TrackingReport) -> None:
+            if report.outcome is not None:
+                self._attempt_end("tracking", report.number, report.outcome)
+            goal_handle.publish_feedback(
+                Track.Feedback(
+                    stage=report.stage, index=report.number, tracking_mse_deg2=report.tracking.mse_deg2
+                )
             )
-            before.append(b.mse_deg2)
-            after.append(a.mse_deg2)
-            feedback("testing", k, a.mse_deg2)
+
+        self._run_steps(goal_handle, experiment, upcoming, step_done)
         goal_handle.succeed()
-        return Track.Result(babbling_map_mse_deg2=before, refined_map_mse_deg2=after)
+        if isinstance(experiment, TrajectoryRefinement):
+            return Track.Result(attempt_mse_deg2=[o.tracking.mse_deg2 for o in experiment.outcomes])
+        result = experiment.result()
+        return Track.Result(
+            babbling_map_mse_deg2=[e.mse_deg2 for e in result.babbling_map],
+            refined_map_mse_deg2=[e.mse_deg2 for e in result.refined_map],
+        )
+
+    def _run_steps(
+        self,
+        goal_handle: ServerGoalHandle,
+        experiment: Experiment,
+        upcoming: Callable[[], _Step | None],
+        done: Callable[[Any], None],
+    ) -> None:
+        """Step `experiment` to its end: check cancel, announce the attempt, play it, report, publish the map.
+
+        `upcoming` describes the next step (None: not an attempt of the run, e.g. a test trajectory, and
+        not announced); `done` emits the step's end event and the goal's feedback.
+        """
+        while not experiment.finished:
+            self._check_cancel(goal_handle)
+            step = upcoming()
+            if step is not None:
+                self._event("attempt_start", phase=step.phase, attempt=step.number, features=step.features)
+            report = experiment.next_attempt(self.rig, cancel=self._cancel)
+            done(report)
+            if report.fit is not None:
+                self._publish_map(report.fit)
 
     # Publishing ----------------------------------------------------------------------------------------
 

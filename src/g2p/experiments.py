@@ -1,7 +1,8 @@
 """The paper's experiments on any rig: the treadmill task (Fig 4) and tracking in the air (Fig 5).
 
-Each experiment advances one attempt at a time, so that a ROS action server can publish feedback and
-honour cancel between attempts; the `run_*` functions drive them to the end in-process.
+Each experiment advances one attempt at a time (`next_attempt`, until `finished`), so that a ROS action
+server can publish feedback and honour cancel between attempts; `run_treadmill`,
+`refine_one_trajectory` and `generalization` drive them to the end in-process.
 """
 
 from __future__ import annotations
@@ -12,11 +13,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from g2p.attempt import AttemptOutcome, TrackingError, run_attempt
-from g2p.inverse_map import FitReport, InverseMap
+from g2p.inverse_map import FitReport
 from g2p.learner import Learner
 from g2p.limit_cycle import LimitCycleConfig
 from g2p.rig import ProgressCallback, Rig
 from g2p.search import Phase, RewardSearch, SearchConfig
+from g2p.seeds import seed_streams
 
 
 @dataclass(frozen=True)
@@ -60,7 +62,7 @@ class TreadmillRun:
         self.search = RewardSearch(search)
         self.cycle = cycle
         self.reports: list[AttemptReport] = []
-        self._rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(3)[2])
+        self._rng = seed_streams(seed).search
 
     @property
     def finished(self) -> bool:
@@ -128,19 +130,81 @@ def run_treadmill(
     return treadmill_result(run, fit)
 
 
+@dataclass(frozen=True)
+class TrackingReport:
+    """One step of a free-movement experiment.
+
+    Attributes:
+        stage: "training" (an attempt, refined after it when the experiment says so) or "testing" (an
+            unseen trajectory played with a fixed map: the babbling-only one or the refined one).
+        number: step number within its stage (1-based).
+        features: the trajectory's spoke lengths, shape (n_spokes,).
+        tracking: the tracking error of the step.
+        outcome: the attempt (training; None when testing).
+        fit: the refinement that followed the attempt (None when not refined).
+        babbling_map: testing: whether the babbling-only map played (else the refined one).
+    """
+
+    stage: str
+    number: int
+    features: np.ndarray
+    tracking: TrackingError
+    outcome: AttemptOutcome | None = None
+    fit: FitReport | None = None
+    babbling_map: bool = False
+
+
+class TrajectoryRefinement:
+    """Free movement in the air (paper Fig 5a): one trajectory, one `next_attempt` at a time.
+
+    The trajectory is attempted with the babbling map, then refined on and attempted again `refinements`
+    times.
+
+    Args:
+        learner: a learner whose map is fitted (after babbling).
+        features: the trajectory's spoke lengths, shape (n_spokes,).
+        cycle: limit-cycle parameters (air bounds).
+        refinements: how many times the map is refined (paper: 5).
+    """
+
+    def __init__(
+        self, learner: Learner, features: np.ndarray, cycle: LimitCycleConfig, refinements: int = 5
+    ) -> None:
+        self.learner = learner
+        self.features = np.asarray(features, dtype=np.float64)
+        self.cycle = cycle
+        self.refinements = refinements
+        self.outcomes: list[AttemptOutcome] = []
+
+    @property
+    def finished(self) -> bool:
+        """Whether every attempt was played (refinements + 1)."""
+        return len(self.outcomes) > self.refinements
+
+    def next_attempt(
+        self, rig: Rig, progress: ProgressCallback | None = None, cancel: threading.Event | None = None
+    ) -> TrackingReport:
+        """Play the trajectory once more and refine the map on it, except after the last attempt."""
+        k = len(self.outcomes)
+        outcome, fit = self.learner.attempt(
+            rig, self.features, self.cycle, k < self.refinements, progress, cancel
+        )
+        self.outcomes.append(outcome)
+        return TrackingReport("training", k + 1, self.features, outcome.tracking, outcome, fit)
+
+
 def refine_one_trajectory(
     learner: Learner, rig: Rig, features: np.ndarray, cycle: LimitCycleConfig, refinements: int = 5
 ) -> list[AttemptOutcome]:
-    """Free movement in the air (paper Fig 5a): one trajectory, attempted and refined `refinements` times.
+    """`TrajectoryRefinement` in-process, to the end.
 
     Returns:
         refinements + 1 outcomes: the attempt with the babbling map, then one after each refinement.
     """
-    outcomes = []
-    for k in range(refinements + 1):
-        outcome, _ = learner.attempt(rig, features, cycle, refine=k < refinements)
-        outcomes.append(outcome)
-    return outcomes
+    experiment = TrajectoryRefinement(learner, features, cycle, refinements)
+    while not experiment.finished:
+        experiment.next_attempt(rig)
+    return experiment.outcomes
 
 
 @dataclass(frozen=True)
@@ -172,45 +236,89 @@ class GeneralizationResult:
         )
 
 
+class Generalization:
+    """Generalization to unseen trajectories (paper Fig 5b), one `next_attempt` at a time.
+
+    The map is refined on the training trajectories; then every test trajectory is tracked with the
+    babbling-only map, then every one with the refined map, both fixed (in this order: each play advances
+    the rig's state, e.g. the simulator's tick jitter).
+
+    Args:
+        learner: a learner whose map was fitted on babbling only.
+        cycle: limit-cycle parameters (air bounds).
+        train: training trajectories' features, shape (n_train, n_spokes) (paper: 30).
+        test: unseen test trajectories' features, shape (n_test, n_spokes) (paper: 30).
+    """
+
+    def __init__(
+        self, learner: Learner, cycle: LimitCycleConfig, train: np.ndarray, test: np.ndarray
+    ) -> None:
+        self.learner = learner
+        self.cycle = cycle
+        self.train = np.asarray(train, dtype=np.float64)
+        self.test = np.asarray(test, dtype=np.float64)
+        self._babbling_map = learner.frozen_map()
+        self.trained = 0
+        self.babbling_map_errors: list[TrackingError] = []
+        self.refined_map_errors: list[TrackingError] = []
+
+    @property
+    def stage(self) -> str:
+        """The next step's stage: "training" until every training trajectory was attempted, then "testing"."""
+        return "training" if self.trained < len(self.train) else "testing"
+
+    @property
+    def finished(self) -> bool:
+        """Whether every test trajectory was tracked with both maps."""
+        return len(self.refined_map_errors) == len(self.test)
+
+    def next_attempt(
+        self, rig: Rig, progress: ProgressCallback | None = None, cancel: threading.Event | None = None
+    ) -> TrackingReport:
+        """The next training attempt (then a refinement), or the next test trajectory with the next map."""
+        if self.stage == "training":
+            features = self.train[self.trained]
+            outcome, fit = self.learner.attempt(rig, features, self.cycle, True, progress, cancel)
+            self.trained += 1
+            return TrackingReport("training", self.trained, features, outcome.tracking, outcome, fit)
+        babbling = len(self.babbling_map_errors) < len(self.test)
+        errors = self.babbling_map_errors if babbling else self.refined_map_errors
+        inverse_map = self._babbling_map if babbling else self.learner.inverse_map
+        features = self.test[len(errors)]
+        outcome = run_attempt(
+            rig, inverse_map, features, self.cycle, self.learner.lead_ticks, progress, cancel
+        )
+        errors.append(outcome.tracking)
+        return TrackingReport("testing", len(errors), features, outcome.tracking, babbling_map=babbling)
+
+    def result(self) -> GeneralizationResult:
+        """The test errors so far of both maps."""
+        return GeneralizationResult(tuple(self.babbling_map_errors), tuple(self.refined_map_errors))
+
+
 def random_features(rng: np.random.Generator, cycle: LimitCycleConfig, n: int) -> np.ndarray:
     """N feature vectors uniform in the cycle's bounds, shape (n, n_spokes)."""
     return rng.uniform(cycle.feature_low, cycle.feature_high, size=(n, cycle.n_spokes))
 
 
-def evaluate_fixed_map(
-    inverse_map: InverseMap, rig: Rig, trajectories: np.ndarray, cycle: LimitCycleConfig, lead_ticks: int
-) -> tuple[TrackingError, ...]:
-    """Tracking error of a fixed map on each trajectory (no refinement); `lead_ticks` as in `plan_attempt`."""
-    return tuple(run_attempt(rig, inverse_map, f, cycle, lead_ticks).tracking for f in trajectories)
-
-
 def generalization(
     learner: Learner, rig: Rig, cycle: LimitCycleConfig, train: np.ndarray, test: np.ndarray
 ) -> GeneralizationResult:
-    """Refine on `train` trajectories, then test the babbling-only and the refined map on `test`.
-
-    Args:
-        learner: a learner whose map was fitted on babbling only.
-        rig: the rig (in the air).
-        cycle: limit-cycle parameters (air bounds).
-        train: training trajectories' features, shape (n_train, n_spokes) (paper: 30).
-        test: unseen test trajectories' features, shape (n_test, n_spokes) (paper: 30).
-    """
-    babbling_map = learner.frozen_map()
-    for f in train:
-        learner.attempt(rig, f, cycle, refine=True)
-    return GeneralizationResult(
-        evaluate_fixed_map(babbling_map, rig, test, cycle, learner.lead_ticks),
-        evaluate_fixed_map(learner.inverse_map, rig, test, cycle, learner.lead_ticks),
-    )
+    """`Generalization` in-process, to the end."""
+    experiment = Generalization(learner, cycle, train, test)
+    while not experiment.finished:
+        experiment.next_attempt(rig)
+    return experiment.result()
 
 
 __all__ = [
     "AttemptReport",
+    "Generalization",
     "GeneralizationResult",
+    "TrackingReport",
+    "TrajectoryRefinement",
     "TreadmillResult",
     "TreadmillRun",
-    "evaluate_fixed_map",
     "generalization",
     "random_features",
     "refine_one_trajectory",

@@ -19,6 +19,7 @@ from g2p.kinematics import PreprocessConfig, TrainingPairs, recording_pairs
 from g2p.limit_cycle import LimitCycleConfig
 from g2p.plant import Recording, concatenate
 from g2p.rig import ProgressCallback, Rig
+from g2p.seeds import seed_streams
 
 
 @dataclass(frozen=True)
@@ -74,9 +75,9 @@ class Learner:
 
     def __init__(self, config: LearnerConfig | None = None) -> None:
         self.config = config or LearnerConfig()
-        babble_seq, map_seq = np.random.SeedSequence(self.config.seed).spawn(2)
-        self._babble_rng = np.random.default_rng(babble_seq)
-        self._map_rng = np.random.default_rng(map_seq)
+        streams = seed_streams(self.config.seed)
+        self._babble_rng = streams.babbling
+        self._map_rng = streams.inverse_map
         self.inverse_map = InverseMap(self.config.inverse_map)
         self.dataset = Dataset()
         self.refinements = 0
