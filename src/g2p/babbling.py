@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from g2p.config import require, require_positive, require_range
+from g2p.plant import NOMINAL_TICK_HZ
 from g2p.safety import BASELINE_ACTIVATION
 
 FloatArray = NDArray[np.float64]
@@ -21,21 +22,24 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class BabblingConfig:
-    """Parameters of a babbling session (defaults: the paper's)."""
+    """Parameters of a babbling session (defaults: the paper's).
+
+    Attributes:
+        duration_s: session length (s); 5 min in the paper.
+        rate_hz: sample (rig tick) rate at which activations are served (Hz).
+        mean_dwell_s: mean time a motor holds a level (s); a motor switches with probability 1 / (mean_dwell_s
+            * rate_hz) at each sample.
+        low: lowest activation level (dimensionless); the 15% baseline tension.
+        high: highest activation level (dimensionless).
+        n_motors: number of motors (M0..M2).
+    """
 
     duration_s: float = 300.0
-    """Session length (s); 5 min in the paper."""
-    rate_hz: float = 78.0
-    """Sample (rig tick) rate at which activations are served (Hz)."""
+    rate_hz: float = NOMINAL_TICK_HZ
     mean_dwell_s: float = 1.0
-    """Mean time a motor holds a level (s); a motor switches with probability 1 / (mean_dwell_s * rate_hz)
-    at each sample."""
     low: float = BASELINE_ACTIVATION
-    """Lowest activation level (dimensionless); the 15% baseline tension."""
     high: float = 1.0
-    """Highest activation level (dimensionless)."""
     n_motors: int = 3
-    """Number of motors (M0..M2)."""
 
     def __post_init__(self) -> None:
         require_positive(self.duration_s, "duration_s")

@@ -93,44 +93,51 @@ class InverseMapFormatError(InverseMapError):
 
 @dataclass(frozen=True)
 class InverseMapConfig:
-    """Network and training parameters (defaults: the paper's network, MATLAB trainlm's training)."""
+    """Network and training parameters (defaults: the paper's network, MATLAB trainlm's training).
+
+    Attributes:
+        n_hidden: hidden tanh units.
+        activation_low: lowest activation `predict` returns (dimensionless): the baseline tension.
+        activation_high: highest activation `predict` returns (dimensionless).
+        normalization: input and target normalization, fixed at the initial fit.
+        validation_fraction: share of the samples held out for early stopping (MATLAB's default split: 15%).
+        optimizer: training algorithm (chosen by benchmarks/bench_inverse_map.py).
+        max_iterations_fit: iteration budget of the initial fit. MATLAB's default is 1000 epochs; LM stops on
+            validation after 100-280 iterations on 5 min of babbling, and 300 keeps the fit of 23,400 samples
+            under 5 s on one core.
+        max_iterations_refine: iteration budget of one refinement (keeps a refinement on ~70,000 samples under
+            1 s on one core).
+        patience: consecutive iterations without a better validation error before stopping (MATLAB's
+            max_fail).
+        lm_mu: initial Levenberg-Marquardt damping (MATLAB's mu).
+        lm_mu_decrease: damping factor after an accepted step (MATLAB's mu_dec).
+        lm_mu_increase: damping factor after a rejected step (MATLAB's mu_inc).
+        lm_mu_max: damping at which LM gives up (MATLAB's mu_max).
+        lbfgs_history: L-BFGS memory (pairs of steps).
+        adam_learning_rate: adam step size (normalized units).
+        adam_batch_size: adam minibatch size (samples).
+        num_threads: torch intra-op threads while training; 0 leaves torch's setting alone. One thread is the
+            default: on a shared 2-core machine, two OpenMP threads sometimes stall for seconds
+            (docs/ALGORITHM.md).
+    """
 
     n_hidden: int = 15
-    """Hidden tanh units."""
     activation_low: float = BASELINE_ACTIVATION
-    """Lowest activation `predict` returns (dimensionless): the baseline tension."""
     activation_high: float = 1.0
-    """Highest activation `predict` returns (dimensionless)."""
     normalization: Normalization = Normalization.MINMAX
-    """Input and target normalization, fixed at the initial fit."""
     validation_fraction: float = 0.15
-    """Share of the samples held out for early stopping (MATLAB's default split: 15%)."""
     optimizer: Optimizer = Optimizer.LM
-    """Training algorithm (chosen by benchmarks/bench_inverse_map.py)."""
     max_iterations_fit: int = 300
-    """Iteration budget of the initial fit. MATLAB's default is 1000 epochs; LM stops on validation after
-    100-280 iterations on 5 min of babbling, and 300 keeps the fit of 23,400 samples under 5 s on one core."""
     max_iterations_refine: int = 10
-    """Iteration budget of one refinement (keeps a refinement on ~70,000 samples under 1 s on one core)."""
     patience: int = 6
-    """Consecutive iterations without a better validation error before stopping (MATLAB's max_fail)."""
     lm_mu: float = 1e-3
-    """Initial Levenberg-Marquardt damping (MATLAB's mu)."""
     lm_mu_decrease: float = 0.1
-    """Damping factor after an accepted step (MATLAB's mu_dec)."""
     lm_mu_increase: float = 10.0
-    """Damping factor after a rejected step (MATLAB's mu_inc)."""
     lm_mu_max: float = 1e10
-    """Damping at which LM gives up (MATLAB's mu_max)."""
     lbfgs_history: int = 20
-    """L-BFGS memory (pairs of steps)."""
     adam_learning_rate: float = 1e-2
-    """Adam step size (normalized units)."""
     adam_batch_size: int = 1024
-    """Adam minibatch size (samples)."""
     num_threads: int = 1
-    """Torch intra-op threads while training; 0 leaves torch's setting alone. One thread is the default: on a
-    shared 2-core machine, two OpenMP threads sometimes stall for seconds (docs/ALGORITHM.md)."""
 
     def __post_init__(self) -> None:
         for name, kind in (("normalization", Normalization), ("optimizer", Optimizer)):

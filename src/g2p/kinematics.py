@@ -21,7 +21,7 @@ from scipy.interpolate import CubicSpline
 from scipy.signal import savgol_coeffs
 
 from g2p.config import ConfigError, require, require_positive
-from g2p.plant import Recording
+from g2p.plant import NOMINAL_TICK_HZ, Recording
 
 FloatArray = NDArray[np.float64]
 
@@ -62,39 +62,47 @@ class ActivationResampling(str, enum.Enum):
 
 @dataclass(frozen=True)
 class PreprocessConfig:
-    """Resampling and differentiation parameters (defaults: chosen by benchmarks/bench_differentiators.py)."""
+    """Resampling and differentiation parameters (defaults: chosen by benchmarks/bench_differentiators.py).
 
-    rate_hz: float = 78.0
-    """Rate of the uniform grid (Hz); the rig's nominal tick rate."""
+    Attributes:
+        rate_hz: rate of the uniform grid (Hz); the rig's nominal tick rate.
+        resampling: interpolation of the angles onto the grid.
+        activation_resampling: interpolation of the activations onto the grid.
+        differentiator: velocity and acceleration estimator.
+        savgol_window: savitzky-Golay window (samples, odd).
+        savgol_polyorder: savitzky-Golay polynomial order (>= 2 so the second derivative exists, <
+            savgol_window).
+        max_gap_s: longest interval between two stamps that is still interpolated (s); a longer one means lost
+            samples.
+        transition_fraction: leading fraction (dimensionless) of an attempt dropped before refinement (the
+            move away from the rest posture).
+        command_lead_ticks: grid samples between a command and the motion it causes: kinematics at sample k
+            are paired with the activation of sample k - command_lead_ticks, and attempts play each activation
+            that much early. The motors' current lag and the tendons' stretch delay the motion; pairing
+            kinematics with the activation of the same sample teaches the map a late command, and refinement
+            then tracks worse with every attempt (docs/ALGORITHM.md, "Command lead"). 3 samples (38 ms) suits
+            the simulated rig; measure it on hardware.
+        command_at_tick_middle: with HOLD activations, pair kinematics at grid time t with the command held at
+            t - (lead + 0.5) grid intervals, the middle of the tick that ended `command_lead_ticks` ticks
+            before t, instead of at t - lead intervals. Grid stamps fall on tick boundaries (the grid starts
+            at the first tick's end), where the held command is ambiguous: depending on the jitter, about half
+            of the pairs got the command of the next tick, which had not yet acted on the angles it was paired
+            with. An attempt plays the activation for desired row k + lead during tick k and compares the
+            angle at the end of tick k + lead with that row: lead whole ticks from the end of the command's
+            tick to the kinematics, which the middle pairing reproduces (docs/ALGORITHM.md, "Command
+            pairing"). False: the boundary pairing.
+    """
+
+    rate_hz: float = NOMINAL_TICK_HZ
     resampling: Resampling = Resampling.CUBIC
-    """Interpolation of the angles onto the grid."""
     activation_resampling: ActivationResampling = ActivationResampling.HOLD
-    """Interpolation of the activations onto the grid."""
     differentiator: Differentiator = Differentiator.SAVGOL
-    """Velocity and acceleration estimator."""
     savgol_window: int = 9
-    """Savitzky-Golay window (samples, odd)."""
     savgol_polyorder: int = 5
-    """Savitzky-Golay polynomial order (>= 2 so the second derivative exists, < savgol_window)."""
     max_gap_s: float = 0.1
-    """Longest interval between two stamps that is still interpolated (s); a longer one means lost samples."""
     transition_fraction: float = 0.25
-    """Leading fraction of an attempt dropped before refinement (the move away from the rest posture)."""
     command_lead_ticks: int = 3
-    """Grid samples between a command and the motion it causes: kinematics at sample k are paired with the
-    activation of sample k - command_lead_ticks, and attempts play each activation that much early. The
-    motors' current lag and the tendons' stretch delay the motion; pairing kinematics with the activation
-    of the same sample teaches the map a late command, and refinement then tracks worse with every attempt
-    (docs/ALGORITHM.md, "Command lead"). 3 samples (38 ms) suits the simulated rig; measure it on hardware."""
     command_at_tick_middle: bool = True
-    """With HOLD activations, pair kinematics at grid time t with the command held at t - (lead + 0.5) grid
-    intervals, the middle of the tick that ended `command_lead_ticks` ticks before t, instead of at
-    t - lead intervals. Grid stamps fall on tick boundaries (the grid starts at the first tick's end), where
-    the held command is ambiguous: depending on the jitter, about half of the pairs got the command of the
-    next tick, which had not yet acted on the angles it was paired with. An attempt plays the activation
-    for desired row k + lead during tick k and compares the angle at the end of tick k + lead with that row:
-    lead whole ticks from the end of the command's tick to the kinematics, which the middle pairing
-    reproduces (docs/ALGORITHM.md, "Command pairing"). False: the boundary pairing."""
 
     def __post_init__(self) -> None:
         require_positive(self.rate_hz, "rate_hz")

@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
 
 from g2p.config import require, require_length, require_positive, require_range
+from g2p.plant import NOMINAL_TICK_HZ
 
 FloatArray = NDArray[np.float64]
 
@@ -35,29 +36,34 @@ AIR_FEATURE_BOUNDS = (0.2, 0.8)
 
 @dataclass(frozen=True)
 class LimitCycleConfig:
-    """Shape and timing of limit cycles (defaults: the paper's hardware numbers, treadmill bounds)."""
+    """Shape and timing of limit cycles (defaults: the paper's hardware numbers, treadmill bounds).
+
+    Attributes:
+        centre_rad: centre of the spokes (rad): proximal, distal; the middle of the joints' usable range. The
+            default is the simulated leg's (g2p.sim.LIMIT_CYCLE_WORKSPACE); on hardware, set it from the rig's
+            calibration (the authors used the middle of their encoders' range, 68 and 297.5 encoder degrees).
+        radius_rad: signed spoke scale per joint (rad): the half-range of the usable joint range (the authors:
+            65 and 47.5 encoder degrees). The sign of one joint's radius sets the direction the cycle runs
+            (see the module docstring); the default runs counter-clockwise in the (proximal, distal) plane,
+            the stepping direction: the hip extends while the knee is near straight (stance) and flexes while
+            the knee is bent (swing).
+        n_spokes: spokes, and so features and segments per cycle.
+        samples_per_segment: rig ticks between consecutive spoke points (8 in the authors' code: 80 ticks,
+            ~1.03 s per cycle).
+        rate_hz: rig tick rate at which the cycle is sampled (Hz).
+        feature_low: smallest allowed feature (spoke length as a fraction of the radius).
+        feature_high: largest allowed feature (feature units).
+        n_cycles: cycles played back to back in one attempt.
+    """
 
     centre_rad: tuple[float, float] = (0.0, -0.6)
-    """Centre of the spokes (rad): proximal, distal; the middle of the joints' usable range. The default is
-    the simulated leg's (g2p.sim.LIMIT_CYCLE_WORKSPACE); on hardware, set it from the rig's calibration (the
-    authors used the middle of their encoders' range, 68 and 297.5 encoder degrees)."""
     radius_rad: tuple[float, float] = (-0.6, 0.6)
-    """Signed spoke scale per joint (rad): the half-range of the usable joint range (the authors: 65 and
-    47.5 encoder degrees). The sign of one joint's radius sets the direction the cycle runs (see the module
-    docstring); the default runs counter-clockwise in the (proximal, distal) plane, the stepping direction:
-    the hip extends while the knee is near straight (stance) and flexes while the knee is bent (swing)."""
     n_spokes: int = 10
-    """Spokes, and so features and segments per cycle."""
     samples_per_segment: int = 8
-    """Rig ticks between consecutive spoke points (8 in the authors' code: 80 ticks, ~1.03 s per cycle)."""
-    rate_hz: float = 78.0
-    """Rig tick rate at which the cycle is sampled (Hz)."""
+    rate_hz: float = NOMINAL_TICK_HZ
     feature_low: float = TREADMILL_FEATURE_BOUNDS[0]
-    """Smallest allowed feature (spoke length as a fraction of the radius)."""
     feature_high: float = TREADMILL_FEATURE_BOUNDS[1]
-    """Largest allowed feature."""
     n_cycles: int = 20
-    """Cycles played back to back in one attempt."""
 
     def __post_init__(self) -> None:
         require_length(self.centre_rad, 2, "centre_rad")

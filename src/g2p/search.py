@@ -43,26 +43,29 @@ class SearchFinished(RuntimeError):
 
 @dataclass(frozen=True)
 class SearchConfig:
-    """Reward-search parameters (defaults: the paper's and the authors' code)."""
+    """Reward-search parameters (defaults: the paper's and the authors' code).
+
+    Attributes:
+        n_features: length of the feature vector (limit-cycle spokes).
+        feature_low: smallest feature value (feature units; treadmill preset; 0.2 in the air).
+        feature_high: largest feature value (feature units; treadmill preset; 0.8 in the air).
+        threshold_mm: reward an exploration attempt must exceed to start exploitation (mm of belt travel).
+        max_exploration_attempts: exploration attempts before the search fails.
+        exploitation_attempts: exploitation attempts before the search is done.
+        sigma_min: floor of the exploitation standard deviation (feature units).
+        sigma_ref_mm: best reward at which the schedule (sigma_ref_mm - best) / sigma_scale_mm reaches 0 (mm).
+        sigma_scale_mm: reward per unit of standard deviation in the schedule (mm).
+    """
 
     n_features: int = 10
-    """Length of the feature vector (limit-cycle spokes)."""
     feature_low: float = TREADMILL_FEATURE_BOUNDS[0]
-    """Smallest feature value (treadmill preset; 0.2 in the air)."""
     feature_high: float = TREADMILL_FEATURE_BOUNDS[1]
-    """Largest feature value (treadmill preset; 0.8 in the air)."""
     threshold_mm: float = 64.0
-    """Reward an exploration attempt must exceed to start exploitation (mm of belt travel)."""
     max_exploration_attempts: int = 100
-    """Exploration attempts before the search fails."""
     exploitation_attempts: int = 15
-    """Exploitation attempts before the search is done."""
     sigma_min: float = 0.03
-    """Floor of the exploitation standard deviation (feature units)."""
     sigma_ref_mm: float = 600.0
-    """Best reward at which the schedule (sigma_ref_mm - best) / sigma_scale_mm reaches 0 (mm)."""
     sigma_scale_mm: float = 9000.0
-    """Reward per unit of standard deviation in the schedule (mm)."""
 
     def __post_init__(self) -> None:
         require(self.n_features >= 1, "n_features", f"must be >= 1, got {self.n_features}")
