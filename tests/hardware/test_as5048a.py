@@ -9,8 +9,8 @@ import pytest
 from g2p.hardware import as5048a as enc
 from g2p.hardware.as5048a import AS5048A, EncoderModel
 from g2p.hardware.errors import EncoderErrorFlag, EncoderParityError
-from g2p.hardware.fakes import FakeAS5048A, FaultKind
-from tests.hardware.rigs import RecordingSpi
+from g2p.hardware.fake_chips import FakeAS5048A, FaultKind
+from tests.hardware.fake_legs import RecordingSpi
 
 
 def test_command_frames_have_the_datasheet_values() -> None:

@@ -6,9 +6,9 @@ import pytest
 
 from g2p.hardware import ina219 as ina
 from g2p.hardware.errors import DeviceError
-from g2p.hardware.fakes import FakeINA219, FakeSMBus
+from g2p.hardware.fake_chips import FakeINA219, FakeSMBus
 from g2p.hardware.ina219 import INA219, settings_for
-from tests.hardware.rigs import RecordingChip
+from tests.hardware.fake_legs import RecordingChip
 
 
 def bus_with(

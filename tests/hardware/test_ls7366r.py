@@ -7,9 +7,9 @@ import math
 import pytest
 
 from g2p.hardware.errors import DeviceError
-from g2p.hardware.fakes import FakeLS7366R, FloatingSpi
+from g2p.hardware.fake_chips import FakeLS7366R, FloatingSpi
 from g2p.hardware.ls7366r import LS7366R, BeltOdometer, to_signed32
-from tests.hardware.rigs import RecordingSpi
+from tests.hardware.fake_legs import RecordingSpi
 
 
 def test_configure_writes_and_reads_back_the_mode_registers_then_clears() -> None:

@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 
 from g2p.hardware import pca9685 as pca
-from g2p.hardware.fakes import FakePCA9685, FakeSMBus
+from g2p.hardware.fake_chips import FakePCA9685, FakeSMBus
 from g2p.hardware.pca9685 import PCA9685
-from tests.hardware.rigs import RecordingChip
+from tests.hardware.fake_legs import RecordingChip
 
 
 def bus_with_chip(address: int = 0x40) -> tuple[FakeSMBus, FakePCA9685, RecordingChip]:

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from g2p.hardware.errors import DeviceError
-from g2p.hardware.fakes import FakePwmSysfs
+from g2p.hardware.fake_chips import FakePwmSysfs
 from g2p.hardware.sysfs_pwm import SysfsPwmChannel, SysfsPwmGroup
 
 

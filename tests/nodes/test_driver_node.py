@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import math
 import signal
+import subprocess
+import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -26,7 +28,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-from g2p.hardware import RigConfig
+from g2p.hardware import WiringConfig
 from g2p_interfaces.action import RunActivations
 from g2p_interfaces.msg import MotorActivation
 from g2p_ros import contract
@@ -35,7 +37,7 @@ from g2p_ros.params import CONFIG_QOS
 from tests.nodes.rosproc import NodeProcess, RosPeer, wait_until
 
 BASELINE = 0.15
-PWM = RigConfig().pwm  # the installed rig.yaml uses the default map: 10 % .. 90 %
+PWM = WiringConfig().pwm  # the installed wiring.yaml uses the default map: 10 % .. 90 %
 BASELINE_DUTY = PWM.duty(BASELINE)
 DUTY_STEP = 1.0 / 4096  # PCA9685 resolution
 DEEP_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
@@ -289,9 +291,9 @@ def test_signals_while_playing_leave_the_outputs_off(
 def test_invalid_rig_description_fails_configure_and_names_the_field(
     tmp_path: Path, state_dir: Path, peer: LifecyclePeer
 ) -> None:
-    bad = tmp_path / "rig.yaml"
+    bad = tmp_path / "wiring.yaml"
     bad.write_text("pwm:\n  frequency_hz: 5000.0\n")
-    proc = start_driver(tmp_path, state_dir, f"rig_config:={bad}")
+    proc = start_driver(tmp_path, state_dir, f"wiring:={bad}")
     try:
         peer.wait_for_driver()
         assert not peer.transition(Transition.TRANSITION_CONFIGURE)
@@ -315,3 +317,21 @@ def test_tendon_check_passes_on_the_fake_rig(tmp_path: Path, state_dir: Path) ->
     finally:
         assert driver.stop() == 0, driver.log_path.read_text()
     assert is_off(outputs(state_dir))
+
+
+@pytest.mark.parametrize(("fake_devices", "heavy"), [(False, set()), (True, {"mujoco"})])
+def test_the_driver_imports_mujoco_only_for_fake_devices_and_never_torch(
+    fake_devices: bool, heavy: set[str]
+) -> None:
+    """The Pi runs the driver with neither torch nor MuJoCo installed: the node must not import them."""
+    code = (
+        "import sys, rclpy\n"
+        "from g2p_driver.driver import DriverNode\n"
+        f"rclpy.init(args=['x', '--ros-args', '-p', 'fake_devices:={str(fake_devices).lower()}'])\n"
+        "node = DriverNode()\n"
+        "print(sorted({'torch', 'mujoco'} & set(sys.modules)))\n"
+        "node.destroy_node(); rclpy.shutdown()\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == str(sorted(heavy))

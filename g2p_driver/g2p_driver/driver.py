@@ -10,7 +10,7 @@ Lifecycle (lifecycle_msgs services under /leg/driver/):
 A persistent hardware fault, an exception in the tick loop or a stalled loop drive the node through
 deactivate into error processing (outputs baseline, then off), ending unconfigured. Ctrl-C and SIGTERM
 stop the tick loop and leave the outputs off before the process exits. With `fake_devices:=true` the same
-node runs on the physics-backed fake buses of `g2p.hardware.fakes` (no Raspberry Pi needed).
+node runs on the physics-backed fake buses of `g2p.hardware.fake_rig` (no Raspberry Pi needed).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ import sys
 import threading
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import rclpy
 from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
@@ -29,12 +30,14 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from std_msgs.msg import Header
 
 from g2p.config import ConfigError, require, require_positive
-from g2p.hardware import HardwareError, HardwareLeg, HardwareLegConfig, load_rig_config, open_devices
-from g2p.hardware.fakes import FakeRig, FakeRigConfig, fake_devices
-from g2p_ros.contract import DEFAULT_NAMESPACE
+from g2p.hardware import HardwareError, HardwareLeg, HardwareLegConfig, load_wiring, open_devices
+from g2p.rig import DEFAULT_NAMESPACE
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
 from g2p_ros.signals import init_with_stop_event
+
+if TYPE_CHECKING:
+    from g2p.hardware.fake_rig import FakeRig, FakeRigConfig
 
 PACKAGE = "g2p_driver"
 
@@ -44,7 +47,7 @@ class DriverConfig:
     """The driver node's own settings (the plant's are under `leg.`, the contract's under `rig.`).
 
     Attributes:
-        rig_config: path of the rig's YAML description; "" uses the installed config/rig.yaml.
+        wiring: path of the rig's wiring description (YAML); "" uses the installed config/wiring.yaml.
         fake_devices: run on the physics-backed fake buses (MuJoCo leg) instead of the Pi's devices;
             `fake.*` parameters set them up.
         autostart: configure and activate at start-up, for a graph without a lifecycle manager.
@@ -52,7 +55,7 @@ class DriverConfig:
         stall_fault_s: while active, a tick loop that ran no tick for this long is a fault (s).
     """
 
-    rig_config: str = ""
+    wiring: str = ""
     fake_devices: bool = False
     autostart: bool = False
     diagnostics_period_s: float = 1.0
@@ -63,12 +66,12 @@ class DriverConfig:
         require_positive(self.stall_fault_s, "stall_fault_s")
 
 
-def default_rig_config_path() -> Path:
-    """The installed example rig description, share/g2p_driver/config/rig.yaml."""
+def default_wiring_path() -> Path:
+    """The installed example wiring description, share/g2p_driver/config/wiring.yaml."""
     try:
-        return Path(get_package_share_directory(PACKAGE)) / "config" / "rig.yaml"
+        return Path(get_package_share_directory(PACKAGE)) / "config" / "wiring.yaml"
     except PackageNotFoundError:
-        return Path(__file__).resolve().parents[1] / "config" / "rig.yaml"
+        return Path(__file__).resolve().parents[1] / "config" / "wiring.yaml"
 
 
 class _RosLogHandler(logging.Handler):
@@ -104,7 +107,12 @@ class DriverNode(LifecycleNode):
         self.config = declare_config(self, DriverConfig)
         self.leg_config = declare_config(self, HardwareLegConfig, "leg.")
         self.rig_server_config = declare_config(self, RigServerConfig, "rig.")
-        self.fake_config = declare_config(self, FakeRigConfig, "fake.")
+        # The fake rig and its MuJoCo leg are imported only when asked for: the Pi needs neither.
+        self.fake_config: FakeRigConfig | None = None
+        if self.config.fake_devices:
+            from g2p.hardware.fake_rig import FakeRigConfig
+
+            self.fake_config = declare_config(self, FakeRigConfig, "fake.")
         require(
             self.leg_config.baseline_activation == self.rig_server_config.baseline_activation,
             "leg.baseline_activation",
@@ -112,7 +120,9 @@ class DriverNode(LifecycleNode):
             f"got {self.leg_config.baseline_activation}",
         )
         document = {**config_as_dict(self.config), "leg": config_as_dict(self.leg_config)}
-        document |= {"rig": config_as_dict(self.rig_server_config), "fake": config_as_dict(self.fake_config)}
+        document["rig"] = config_as_dict(self.rig_server_config)
+        if self.fake_config is not None:
+            document["fake"] = config_as_dict(self.fake_config)
         self._config_pub = publish_config(self, document)
         logging.getLogger("g2p.hardware").addHandler(self._log_handler)
         self._fault: Exception | None = None
@@ -127,16 +137,18 @@ class DriverNode(LifecycleNode):
     # Lifecycle transitions ----------------------------------------------------------------------------
 
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """Read the rig description and open the devices (outputs off)."""
-        path = Path(self.config.rig_config) if self.config.rig_config else default_rig_config_path()
+        """Read the wiring description and open the devices (outputs off)."""
+        path = Path(self.config.wiring) if self.config.wiring else default_wiring_path()
         try:
-            rig = load_rig_config(path)
-            if self.config.fake_devices:
-                self.fake, devices = fake_devices(rig, self.fake_config)
+            wiring = load_wiring(path)
+            if self.fake_config is not None:
+                from g2p.hardware.fake_rig import fake_devices
+
+                self.fake, devices = fake_devices(wiring, self.fake_config)
             else:
-                devices = open_devices(rig)
+                devices = open_devices(wiring)
             try:
-                self.leg = HardwareLeg(devices, rig, self.leg_config)
+                self.leg = HardwareLeg(devices, wiring, self.leg_config)
             except BaseException:
                 devices.close()
                 raise
