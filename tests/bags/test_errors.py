@@ -107,5 +107,5 @@ def test_report_cli_one_line_and_exit_2(bag: Path) -> None:
     assert done.returncode == 2
     lines = done.stderr.splitlines()
     assert len(lines) == 1, done.stderr
-    assert lines[0].startswith(f"report: error: {mcap}: ")
+    assert lines[0].startswith(f"g2p-report: error: {mcap}: ")
     assert "Traceback" not in done.stderr and not (bag / "summary.json").exists()

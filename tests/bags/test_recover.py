@@ -214,4 +214,4 @@ def test_cli_error_is_one_line_and_exit_2(tmp_path: Path) -> None:
         timeout=60,
     )
     assert done.returncode == 2
-    assert done.stderr.splitlines() == [f"recover_bag: error: {tmp_path / 'nope'}: not a directory"]
+    assert done.stderr.splitlines() == [f"g2p-recover-bag: error: {tmp_path / 'nope'}: not a directory"]
