@@ -51,7 +51,7 @@ class LimitCycleConfig:
         samples_per_segment: rig ticks between consecutive spoke points (8 in the authors' code: 80 ticks,
             ~1.03 s per cycle).
         rate_hz: rig tick rate at which the cycle is sampled (Hz).
-        feature_low: smallest allowed feature (spoke length as a fraction of the radius).
+        feature_low: smallest allowed feature (feature units: spoke length as a fraction of the radius).
         feature_high: largest allowed feature (feature units).
         n_cycles: cycles played back to back in one attempt.
     """

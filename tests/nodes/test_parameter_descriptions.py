@@ -56,7 +56,7 @@ def test_every_parameter_has_a_description_and_every_float_its_unit(node: str, t
     params = [*params, "-p", f"bags_dir:={tmp_path}"] if node == "recorder" else params
     if node == "driver":
         params = [*params, "-p", f"fake.state_dir:={tmp_path}"]
-    proc = NodeProcess(package, executable, [*args, "--ros-args", *params], tmp_path)
+    proc = NodeProcess(package, executable, [*args, "--ros-args", "-r", "__ns:=/leg", *params], tmp_path)
     try:
         described = describe(node)
     finally:
