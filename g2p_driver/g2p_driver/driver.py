@@ -34,7 +34,7 @@ from g2p.hardware import HardwareError, HardwareLeg, HardwareLegConfig, load_wir
 from g2p.rig import DEFAULT_NAMESPACE
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
-from g2p_ros.signals import init_with_stop_event
+from g2p_ros.signals import init_with_stop_event, spin_until_stopped
 
 if TYPE_CHECKING:
     from g2p.hardware.fake_rig import FakeRig, FakeRigConfig
@@ -317,8 +317,7 @@ def main(args: list[str] | None = None) -> None:
         executor.add_node(node)
         if node.config.autostart and node.trigger_configure() == TransitionCallbackReturn.SUCCESS:
             node.trigger_activate()
-        while not stop.is_set() and rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
+        spin_until_stopped(executor, stop)
     except ConfigError as err:
         print(f"g2p_driver: invalid parameter {err}", file=sys.stderr)
         sys.exit(2)

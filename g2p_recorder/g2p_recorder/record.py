@@ -37,7 +37,7 @@ from g2p.bags.qos import EndpointQos, Qos, make_qos, recording_qos
 from g2p.bags.writer import create_run_bag
 from g2p.config import ConfigError
 from g2p_ros.params import config_as_dict, declare_config, publish_config
-from g2p_ros.signals import init_with_stop_event
+from g2p_ros.signals import init_with_stop_event, spin_until_stopped
 
 
 def message_class(msgtype: str) -> Any:
@@ -224,8 +224,7 @@ def main(args: list[str] | None = None) -> None:
         # rig's 78 Hz on Jazzy, where the events executor does not exist.
         executor = _FastExecutor()
         executor.add_node(node)
-        while not stop.is_set() and rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
+        spin_until_stopped(executor, stop)
         node.drain(executor, node.config.drain_timeout_s)
     except (ConfigError, BagError) as err:
         print(f"record: error: {err}", file=sys.stderr)

@@ -6,6 +6,7 @@ import signal
 import threading
 
 import rclpy
+from rclpy.executors import Executor
 from rclpy.signals import SignalHandlerOptions
 
 
@@ -24,3 +25,12 @@ def init_with_stop_event(args: list[str] | None) -> threading.Event:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, frame: stop.set())
     return stop
+
+
+def spin_until_stopped(executor: Executor, stop: threading.Event) -> None:
+    """Spin `executor` until `stop` is set (SIGINT or SIGTERM) or the default context shuts down.
+
+    The caller then makes its outputs safe and destroys its node while the context is still valid.
+    """
+    while not stop.is_set() and rclpy.ok():
+        executor.spin_once(timeout_sec=0.1)

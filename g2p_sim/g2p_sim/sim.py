@@ -15,7 +15,7 @@ from g2p.rig import DEFAULT_NAMESPACE
 from g2p.sim import MujocoLeg, MujocoLegConfig
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
-from g2p_ros.signals import init_with_stop_event
+from g2p_ros.signals import init_with_stop_event, spin_until_stopped
 
 
 class TimeMode(enum.Enum):
@@ -85,8 +85,7 @@ def main(args: list[str] | None = None) -> None:
         node = SimNode()
         executor = MultiThreadedExecutor(num_threads=3)
         executor.add_node(node)
-        while not stop.is_set() and rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
+        spin_until_stopped(executor, stop)
     except ConfigError as err:
         print(f"g2p_sim: invalid parameter {err}", file=sys.stderr)
         sys.exit(2)
