@@ -1,7 +1,7 @@
 """`ros2 run g2p_driver driver`: the physical rig as a lifecycle node serving the rig contract.
 
 Lifecycle (lifecycle_msgs services under /leg/driver/):
-    configure   read the rig's YAML, open and set up the devices; motor outputs stay off.
+    configure   read the wiring (YAML), open and set up the devices; motor outputs stay off.
     activate    serve the rig contract (RigServer, paced by the hardware loop); the plant's reset switches
                 the motor drivers on at baseline tension and waits for the leg to come to rest.
     deactivate  stop serving; outputs hold baseline tension.
