@@ -7,8 +7,9 @@ The learner drives a `Rig`: an in-process plant wrapped by `PlantRig`, or the RO
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,6 +29,14 @@ class RigError(RuntimeError):
 
 class RigCancelled(RigError):
     """A sequence was cancelled on request; the rig dropped to baseline."""
+
+
+class RigUnreachable(RigError):
+    """The rig stopped answering (a cut link, a dead rig process): what it played since is unknown.
+
+    The rig itself falls back to baseline once it has nothing valid to play; a sequence it was playing
+    plays to its end (it is a valid sequence), then baseline.
+    """
 
 
 class Rig(Protocol):
@@ -87,3 +96,88 @@ class PlantRig:
         if progress is not None:
             progress(len(seq), len(seq))
         return Recording.from_samples(samples)
+
+
+RigEventCallback = Callable[[str, dict[str, Any]], None]
+
+
+class RetryingRig:
+    """A `Rig` whose calls survive the rig going away for up to `limit_s`: lost work is redone from rest.
+
+    A `play` or `reset` that fails with RigUnreachable is not used: once the rig answers a reset again,
+    the sequence is played again, whole, from rest (an attempt starts from rest anyway; a babbling chunk
+    that followed another starts from rest instead). So a caller only ever gets complete recordings, and a
+    sequence whose data is incomplete is never used. When the rig does not answer within `limit_s` of
+    losing it, RigUnreachable is raised and the caller ends its run.
+
+    Args:
+        rig: the rig to drive (e.g. the ROS rig client).
+        limit_s: longest time without the rig before giving up (s).
+        retry_pause_s: pause between two failed resets (s).
+        on_event: told ("rig_lost", {"error": ..., "call": ...}) when a call failed, and
+            ("rig_back", {"downtime_s": ..., "retries": ...}) once the rig answers again.
+    """
+
+    def __init__(
+        self,
+        rig: Rig,
+        limit_s: float,
+        retry_pause_s: float = 0.5,
+        on_event: RigEventCallback | None = None,
+    ) -> None:
+        self._rig = rig
+        self._limit_s = limit_s
+        self._retry_pause_s = retry_pause_s
+        self._on_event = on_event
+        self.retries = 0
+        """Calls redone because the rig was lost, since construction."""
+
+    def reset(self) -> None:
+        """Reset the rig, waiting for it to come back if it is lost."""
+        try:
+            self._rig.reset()
+        except RigUnreachable as err:
+            self._recover("reset", err, None)
+
+    def play(
+        self,
+        activations: NDArray[np.float64],
+        progress: ProgressCallback | None = None,
+        cancel: threading.Event | None = None,
+    ) -> Recording:
+        """Play the sequence; if the rig is lost meanwhile, play it again from rest once it is back."""
+        while True:
+            try:
+                return self._rig.play(activations, progress, cancel)
+            except RigUnreachable as err:
+                self._recover("play", err, cancel)
+                self.retries += 1
+
+    def _recover(self, call: str, err: RigUnreachable, cancel: threading.Event | None) -> None:
+        """Reset until the rig answers; RigUnreachable after `limit_s`, RigCancelled on `cancel`."""
+        lost_at = time.monotonic()
+        self._tell("rig_lost", {"call": call, "error": str(err)})
+        attempts = 0
+        while True:
+            if cancel is not None and cancel.is_set():
+                raise RigCancelled("cancel requested while waiting for the rig")
+            attempts += 1
+            try:
+                self._rig.reset()
+            except RigCancelled:
+                raise
+            except RigError as retry_err:
+                waited = time.monotonic() - lost_at
+                if waited >= self._limit_s:
+                    raise RigUnreachable(
+                        f"the rig has not answered for {waited:.0f} s (limit {self._limit_s:g} s); "
+                        f"last error: {retry_err}"
+                    ) from retry_err
+                time.sleep(self._retry_pause_s)
+                continue
+            self._tell("rig_back", {"downtime_s": round(time.monotonic() - lost_at, 3), "resets": attempts})
+            return
+
+    def _tell(self, event: str, detail: dict[str, Any]) -> None:
+        if self._on_event is not None:
+            self._on_event(event, detail)
