@@ -9,6 +9,7 @@ MultiThreadedExecutor); the executor completes the futures in its other threads.
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -19,25 +20,45 @@ from rclpy.task import Future
 from std_srvs.srv import Trigger
 
 from g2p.plant import NOMINAL_TICK_HZ, Recording
-from g2p.rig import RigCancelled, RigError
+from g2p.rig import RigCancelled, RigError, RigUnreachable
 from g2p.safety import check_activation_sequence
 from g2p_interfaces.action import RunActivations
 from g2p_ros import contract
 from g2p_ros.convert import recording_from_msg
 from g2p_ros.spinner import wait_for_future
 
+# Once the rig reported the sequence played, how long its result (all ticks) may take to arrive (s): a
+# large message over a lossy link is resent fragment by fragment.
+RESULT_TIMEOUT_S = 30.0
+
 
 class RigClient:
     """Plays activation sequences on the rig serving `run_activations` and `reset` in the node's namespace.
 
+    A rig that goes silent is reported as RigUnreachable, never waited for without bound: while a sequence
+    plays the rig sends feedback every 0.2 s (`rig.feedback_period_s`), so `silence_s` without any means
+    the link or the rig is gone. The goal is then cancelled (the cancel reaches the rig if the link
+    returns; the rig drops to baseline at the end of the sequence anyway) and its late result, if any, is
+    ignored.
+
     Args:
         node: the node to create the clients on (its executor must be spinning in another thread).
         server_timeout_s: how long to wait for the rig to appear before each call (s).
+        silence_s: longest wait for the rig's goal acknowledgement, feedback or reset answer (s).
+        reset_timeout_s: longest wait for a reset to complete (s); the hardware's reset takes seconds.
     """
 
-    def __init__(self, node: Node, server_timeout_s: float = 10.0) -> None:
+    def __init__(
+        self,
+        node: Node,
+        server_timeout_s: float = 10.0,
+        silence_s: float = 2.0,
+        reset_timeout_s: float = 30.0,
+    ) -> None:
         self._node = node
         self._server_timeout_s = server_timeout_s
+        self._silence_s = silence_s
+        self._reset_timeout_s = reset_timeout_s
         group = ReentrantCallbackGroup()
         action = contract.action_name(node, contract.RUN_ACTIVATIONS)
         self._action = ActionClient(node, RunActivations, action, callback_group=group)
@@ -59,11 +80,12 @@ class RigClient:
         """Return the rig to its resting posture.
 
         Raises:
-            RigError: the rig is not reachable or refused.
+            RigUnreachable: the rig is not on the graph or did not answer within `reset_timeout_s`.
+            RigError: the rig refused (e.g. a sequence still plays).
         """
         if not self._reset_watch.wait_until_ready(self._server_timeout_s):
-            raise RigError(f"no rig answers {self._reset.srv_name} within {self._server_timeout_s} s")
-        response = _wait(self._reset.call_async(Trigger.Request()), 120.0, "reset")
+            raise RigUnreachable(f"no rig answers {self._reset.srv_name} within {self._server_timeout_s} s")
+        response = _wait(self._reset.call_async(Trigger.Request()), self._reset_timeout_s, "reset")
         if not response.success:
             raise RigError(f"rig reset failed: {response.message}")
 
@@ -82,29 +104,46 @@ class RigClient:
                 is raised.
 
         Raises:
-            RigError: the rig is not reachable, rejected the goal, or stopped early.
+            RigUnreachable: the rig is not on the graph, or went silent (see the class docstring).
+            RigError: the rig rejected the goal or stopped early.
             RigCancelled: `cancel` was set.
         """
         seq = check_activation_sequence(activations)
         if not self._action_watch.wait_until_ready(self._server_timeout_s):
-            raise RigError(f"no rig serves {contract.RUN_ACTIVATIONS} within {self._server_timeout_s} s")
+            raise RigUnreachable(
+                f"no rig serves {contract.RUN_ACTIVATIONS} within {self._server_timeout_s} s"
+            )
+        heard = [time.monotonic(), 0]  # when the rig last gave word, and the ticks it reported done
 
         def on_feedback(msg: RunActivations.Impl.FeedbackMessage) -> None:
+            heard[:] = [time.monotonic(), int(msg.feedback.ticks_done)]
             if progress is not None:
                 progress(int(msg.feedback.ticks_done), int(msg.feedback.ticks_total))
 
         goal = RunActivations.Goal(activation=seq.ravel())
-        handle = _wait(self._action.send_goal_async(goal, feedback_callback=on_feedback), 30.0, "goal")
+        send = self._action.send_goal_async(goal, feedback_callback=on_feedback)
+        handle = _wait(send, self._silence_s, "the run_activations goal")
         if not handle.accepted:
             raise RigError("the rig rejected the run_activations goal (see the rig's log for the reason)")
+        heard[0] = time.monotonic()
         result_future = handle.get_result_async()
         # Worst case the rig plays in real time; add a margin for slow machines.
-        timeout_s = 60.0 + 3.0 * len(seq) / NOMINAL_TICK_HZ
-        if not wait_for_future(result_future, timeout_s, cancel):
+        limit_s = 60.0 + 3.0 * len(seq) / NOMINAL_TICK_HZ
+        deadline = time.monotonic() + limit_s
+        while not wait_for_future(result_future, 0.05, cancel):
             if cancel is not None and cancel.is_set():
                 _wait(handle.cancel_goal_async(), 10.0, "cancel")
                 raise RigCancelled("sequence cancelled")
-            raise RigError(f"run_activations did not finish within {timeout_s:.0f} s")
+            quiet_s = time.monotonic() - heard[0]
+            playing = heard[1] < len(seq)
+            if (playing and quiet_s > self._silence_s) or quiet_s > RESULT_TIMEOUT_S:
+                handle.cancel_goal_async()  # best effort: reaches the rig if the link returns
+                raise RigUnreachable(
+                    f"no word from the rig for {quiet_s:.1f} s after {heard[1]} of {len(seq)} ticks "
+                    "(link down or rig gone); the sequence is abandoned"
+                )
+            if time.monotonic() > deadline:
+                raise RigError(f"run_activations did not finish within {limit_s:.0f} s")
         response = result_future.result()
         if response is None:
             raise RigError("run_activations returned no result")
@@ -116,7 +155,7 @@ class RigClient:
 
 def _wait(future: Future, timeout_s: float, what: str) -> object:
     if not wait_for_future(future, timeout_s):
-        raise RigError(f"no answer to {what} within {timeout_s} s")
+        raise RigUnreachable(f"no answer to {what} within {timeout_s:g} s")
     if future.exception() is not None:
         raise RigError(f"{what} failed: {future.exception()}")
     return future.result()
