@@ -13,6 +13,7 @@ import importlib
 import math
 import sys
 import threading
+import time
 
 import rclpy
 from action_msgs.msg import GoalStatus
@@ -26,6 +27,11 @@ from g2p_learner.learner_node import LearnerNode
 from g2p_ros.contract import ServerWatch, action_name, wait_all
 from g2p_ros.signals import init_with_stop_event
 from g2p_ros.spinner import BackgroundSpinner, wait_for_future
+
+# While the rig or the recorder is not on the graph yet, how often to say so (s).
+WAIT_REPORT_S = 5.0
+# On exit, how long to wait for the recorder to acknowledge the last events and maps (s).
+EVENT_FLUSH_TIMEOUT_S = 5.0
 
 
 def _parse(argv: list[str]) -> argparse.Namespace:
@@ -87,10 +93,14 @@ def run_learning(node: LearnerNode, client: ActionClient, dataset_bag: str, stop
 
     When `stop` is set (Ctrl-C, SIGTERM) the goal is cancelled, which drops the rig to baseline.
     """
-    # The learner's own server, the rig and the recorder are discovered and settle together.
-    missing = wait_all(
-        [ServerWatch("learn", client.server_is_ready), *node.watches], node.config.rig_timeout_s, stop
-    )
+    # The learner's own server, the rig and the recorder are discovered and settle together; the rig's
+    # side may start later (another host): say what is awaited every few seconds.
+    watches = [ServerWatch("learn", client.server_is_ready), *node.watches]
+    deadline = time.monotonic() + node.config.rig_timeout_s
+    while missing := wait_all(watches, min(WAIT_REPORT_S, max(0.0, deadline - time.monotonic())), stop):
+        if stop.is_set() or time.monotonic() >= deadline:
+            break
+        print(f"learn: waiting for {', '.join(missing)} (is the rig's side up?)", flush=True)
     if stop.is_set():
         return 130
     if missing:
@@ -153,6 +163,8 @@ def main(args: list[str] | None = None) -> None:
     finally:
         if node is not None:
             node.stop_goals(timeout_s=10.0)  # while the executor still spins: cancels reach the rig
+            if not node.flush_events(timeout_s=EVENT_FLUSH_TIMEOUT_S):  # the recorder may be remote
+                print("learn: the recorder did not acknowledge the last events", file=sys.stderr)
         if spinner is not None:
             spinner.stop()
         if client is not None:

@@ -21,9 +21,10 @@ import numpy as np
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from std_msgs.msg import Header
+from std_msgs.msg import Header, String
 
 from g2p.attempt import AttemptOutcome
 from g2p.bags.runs import new_run_id
@@ -41,13 +42,21 @@ from g2p.inverse_map import FitReport
 from g2p.learner import Learner, LearnerConfig
 from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig, check_features
 from g2p.plant import Recording
-from g2p.rig import DEFAULT_NAMESPACE, ProgressCallback, Rig, RigCancelled, RigError
+from g2p.rig import (
+    DEFAULT_NAMESPACE,
+    ProgressCallback,
+    RetryingRig,
+    Rig,
+    RigCancelled,
+    RigError,
+    RigUnreachable,
+)
 from g2p.search import SearchConfig
 from g2p.seeds import seed_streams
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_interfaces.msg import InverseMapWeights, LearnerEvent, NamedArray
 from g2p_ros.contract import RIG_SAMPLE_TOPICS, ServerWatch, action_name, wait_all
-from g2p_ros.params import config_as_dict, declare_config, publish_config
+from g2p_ros.params import CONFIG_QOS, config_as_dict, declare_config, publish_config
 from g2p_ros.rig_client import RigClient
 
 # Events, maps and the configuration must reach the recorder whole, even one that joins late: transient
@@ -71,13 +80,20 @@ class LearnerNodeConfig:
     """The learner node's settings.
 
     Attributes:
-        run_id: identifier of the next learning run; "" generates one (UTC time and a random suffix).
-        bag_path: where a recorder records this node's runs, reported in the learn result ("" = none).
+        run_id: identifier of the next learning run; "" takes the recorder's (`recorder_node`), else
+            generates one (UTC time and a random suffix).
+        bag_path: where a recorder records this node's runs, reported in the learn result ("" = the
+            recorder's, as its host names it).
         air_feature_low: lowest feature of the free-movement (track) trajectories (feature units; paper:
             0.2).
         air_feature_high: highest feature of the free-movement (track) trajectories (feature units; paper:
             0.8).
         rig_timeout_s: how long a goal waits for the rig's action and service (and the recorder) (s).
+        rig_silence_s: a sequence whose rig gives no word (goal acknowledgement, feedback) for this long
+            is abandoned as lost (s); the rig sends feedback every 0.2 s.
+        rig_lost_limit_s: how long a run waits for a lost rig to answer again before it ends (s); the
+            lost sequence is then played again from rest.
+        rig_reset_timeout_s: longest wait for the rig's reset (s).
         recorder_node: name of the recorder node in this namespace: every goal first waits until it
             subscribes to the rig's sample topics, so the recorded run is whole ("" = do not wait).
         learner: babbling, preprocessing and inverse-map settings.
@@ -90,6 +106,9 @@ class LearnerNodeConfig:
     air_feature_low: float = AIR_FEATURE_BOUNDS[0]
     air_feature_high: float = AIR_FEATURE_BOUNDS[1]
     rig_timeout_s: float = 30.0
+    rig_silence_s: float = 2.0
+    rig_lost_limit_s: float = 60.0
+    rig_reset_timeout_s: float = 30.0
     recorder_node: str = ""
     learner: LearnerConfig = field(default_factory=LearnerConfig)
     cycle: LimitCycleConfig = field(default_factory=LimitCycleConfig)
@@ -101,7 +120,8 @@ class LearnerNodeConfig:
             "air_feature_low, air_feature_high",
             f"must satisfy 0 < low < high, got ({self.air_feature_low}, {self.air_feature_high})",
         )
-        require_positive(self.rig_timeout_s, "rig_timeout_s")
+        for name in ("rig_timeout_s", "rig_silence_s", "rig_lost_limit_s", "rig_reset_timeout_s"):
+            require_positive(getattr(self, name), name)
 
     @property
     def air_cycle(self) -> LimitCycleConfig:
@@ -158,13 +178,20 @@ class LearnerNode(Node):
             cycle=declare_config(self, LimitCycleConfig, "cycle."),
             search=declare_config(self, SearchConfig, "search.", exclude=search_fields),
         )
-        self.rig = RigClient(self, self.config.rig_timeout_s)
-        self.watches = list(self.rig.watches)
-        if self.config.recorder_node:
-            name = f"{self.get_namespace().rstrip('/')}/{self.config.recorder_node}"
-            self.watches.append(ServerWatch(f"recorder {name}", self._recorder_listening, settle_s=0.0))
-        self.learner = Learner(self.config.learner)
-        self.run_id = self.config.run_id or new_run_id(datetime.now(timezone.utc), np.random.default_rng())
+        cfg = self.config
+        self.client = RigClient(self, cfg.rig_timeout_s, cfg.rig_silence_s, cfg.rig_reset_timeout_s)
+        self.rig = RetryingRig(self.client, cfg.rig_lost_limit_s, on_event=self._rig_event)
+        self.watches = list(self.client.watches)
+        self._recorder_config: dict[str, Any] | None = None
+        if cfg.recorder_node:
+            name = f"{self.get_namespace().rstrip('/')}/{cfg.recorder_node}"
+            self.watches.append(ServerWatch(f"recorder {name}", self._recorder_ready, settle_s=0.0))
+            self._recorder_sub = self.create_subscription(
+                String, f"{cfg.recorder_node}/config", self._on_recorder_config, CONFIG_QOS
+            )
+        self.learner = Learner(cfg.learner)
+        self.run_id = cfg.run_id or new_run_id(datetime.now(timezone.utc), np.random.default_rng())
+        self.bag_path = cfg.bag_path
         self._busy = False
         self._busy_lock = threading.Lock()
         self._cancel = threading.Event()
@@ -207,8 +234,51 @@ class LearnerNode(Node):
         """Destroy the action servers and the rig client, then the node."""
         for server in self._servers:
             server.destroy()
-        self.rig.destroy()
+        self.client.destroy()
         super().destroy_node()
+
+    def flush_events(self, timeout_s: float) -> bool:
+        """Wait until the recorder acknowledged every event and map (across a slow link); False on timeout."""
+        wait = Duration(seconds=timeout_s)
+        return all(p.wait_for_all_acked(wait) for p in (self._events, self._maps))
+
+    def _on_recorder_config(self, msg: String) -> None:
+        try:
+            self._recorder_config = json.loads(msg.data)
+        except json.JSONDecodeError:
+            self.get_logger().warning(f"unreadable recorder configuration: {msg.data[:200]!r}")
+
+    def _recorder_ready(self) -> bool:
+        """Whether the recorder announced its run and subscribes to every rig sample topic."""
+        return self._recorder_config is not None and self._recorder_listening()
+
+    def _adopt_recorder_run(self) -> None:
+        """With no run id of its own, the learner's runs are the recorder's: its id and its bag."""
+        rec = self._recorder_config
+        if rec is None or self.config.run_id:
+            return
+        self.run_id = str(rec.get("run_id", self.run_id))
+        self.bag_path = self.config.bag_path or str(rec.get("bag", ""))
+
+    def _rig_event(self, event: str, detail: dict[str, Any]) -> None:
+        """The rig was lost or came back (RetryingRig): log it and record it."""
+        if event == "rig_lost":
+            self.get_logger().warning(
+                f"rig lost during {detail['call']}: {detail['error']}; waiting up to "
+                f"{self.config.rig_lost_limit_s:g} s for it to answer again"
+            )
+        else:
+            self.get_logger().info(
+                f"rig back after {detail['downtime_s']:.1f} s; the lost sequence is played again from rest"
+            )
+        self._event(event, detail=detail)
+
+    def _resume_hint(self) -> str:
+        where = self.bag_path or "bags/<run>"
+        return (
+            f"everything up to the last completed attempt is recorded; continue the run with: "
+            f"ros2 run g2p_learner learn --resume {where}"
+        )
 
     def _recorder_listening(self) -> bool:
         """Whether the recorder subscribes to every rig sample topic (as this node's remappings name them)."""
@@ -284,10 +354,17 @@ class LearnerNode(Node):
                     raise RigError(
                         f"not on the graph after {self.config.rig_timeout_s:g} s: {', '.join(missing)}"
                     )
+                self._adopt_recorder_run()
                 return execute(goal_handle)
             except RigCancelled as err:
                 goal_handle.canceled()
                 return action.Result(message=f"cancelled: {err}")
+            except RigUnreachable as err:
+                message = f"{err}; {self._resume_hint()}"
+                self.get_logger().error(f"{action.__name__} goal aborted: {message}")
+                self._event("run_end", detail={"error": str(err), "resume": self.bag_path})
+                goal_handle.abort()
+                return action.Result(message=message)
             except (RigError, ValueError) as err:
                 self.get_logger().error(f"{action.__name__} goal aborted: {err}")
                 self._event("run_end", detail={"error": str(err)})
@@ -417,7 +494,7 @@ class LearnerNode(Node):
             exploration_attempts=result.exploration_attempts,
             exploitation_attempts=result.exploitation_attempts,
             run_id=self.run_id,
-            bag_path=self.config.bag_path,
+            bag_path=self.bag_path,
         )
 
     def _fit_from_bag(self, bag: str) -> FitReport:
