@@ -6,7 +6,13 @@ node (the learner) exits, or on Ctrl-C / SIGTERM, the processes are stopped in a
 learner first (it cancels its goal, the rig drops to baseline), then the rig, then the recorder, which
 finalizes the bag. Then the run's report is written beside the bag.
 
+On two hosts, each host starts its own part (docs/DEPLOYMENT.md): the rig host the rig and the recorder,
+serving until Ctrl-C; the workstation the learner, which waits for the rig and the recorder. DDS then
+runs over UDP on the named interface only.
+
     ros2 run g2p_bringup bringup [--rig sim|sim_realtime|sim_air] [--set learner.search.threshold_mm=64.0] ...
+    ros2 run g2p_bringup bringup --host rig --dds-interface eth0 --rig hardware
+    ros2 run g2p_bringup bringup --host workstation --dds-interface wlan0
 """
 
 from __future__ import annotations
@@ -30,7 +36,8 @@ from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 from rclpy.utilities import remove_ros_args
 
 from g2p.bags.runs import new_run_id
-from g2p_bringup.graph import Graph, GraphError, NodeSpec, load_graph, profile_environment
+from g2p_bringup.dds import profile_environment, two_host_environment
+from g2p_bringup.graph import HOSTS, Graph, GraphError, NodeSpec, load_graph
 from g2p_ros.signals import init_with_stop_event
 
 STOP_TIMEOUT_S = 20.0
@@ -57,7 +64,22 @@ def _parse(argv: list[str]) -> argparse.Namespace:
         help="override a node's parameter; VALUE is YAML (write floats as 1.0)",
     )
     parser.add_argument("--no-report", action="store_true", help="do not write the run's report")
-    return parser.parse_args(remove_ros_args(argv)[1:])
+    parser.add_argument(
+        "--host",
+        choices=HOSTS,
+        default=None,
+        help="start only this host's part of a two-host graph (default: the whole graph on this host)",
+    )
+    parser.add_argument(
+        "--dds-interface",
+        default="",
+        metavar="NAME",
+        help="with --host: the network interface DDS may use (e.g. eth0); no other one carries traffic",
+    )
+    options = parser.parse_args(remove_ros_args(argv)[1:])
+    if options.host and not options.dds_interface:
+        parser.error("--host needs --dds-interface: name the interface that joins the two hosts")
+    return options
 
 
 def _overrides(settings: list[str]) -> dict[str, dict[str, Any]]:
@@ -71,9 +93,14 @@ def _overrides(settings: list[str]) -> dict[str, dict[str, Any]]:
     return out
 
 
-def _node_environment() -> dict[str, str]:
-    """The nodes' environment: ours, with the graph's Fast DDS profile unless one is set already."""
+def _node_environment(dds_interface: str = "", profile_dir: Path | None = None) -> dict[str, str]:
+    """The nodes' environment: ours, with the graph's Fast DDS profile unless one is set already.
+
+    On two hosts, the UDP-only profile for `dds_interface` (written into `profile_dir`) instead.
+    """
     env = dict(os.environ)
+    if dds_interface and profile_dir is not None:
+        return two_host_environment(env, dds_interface, profile_dir)
     profile = Path(get_package_share_directory("g2p_bringup")) / "config" / "fastdds_discovery.xml"
     env.update(profile_environment(env, profile))
     return env
@@ -82,7 +109,7 @@ def _node_environment() -> dict[str, str]:
 class Process:
     """One node of the graph running as a child process in its own session (Ctrl-C reaches only us)."""
 
-    def __init__(self, spec: NodeSpec, params_dir: Path, log_dir: Path) -> None:
+    def __init__(self, spec: NodeSpec, params_dir: Path, log_dir: Path, env: dict[str, str]) -> None:
         self.spec = spec
         params_file = params_dir / f"{spec.name}.yaml"
         params_file.write_text(spec.parameters_yaml())
@@ -100,7 +127,7 @@ class Process:
             stdout=out,
             stderr=subprocess.STDOUT if out else None,
             start_new_session=True,
-            env=_node_environment(),
+            env=env,
         )
 
     def running(self) -> bool:
@@ -122,19 +149,21 @@ class Process:
         return self.popen.wait()
 
 
-def run(graph: Graph, log_dir: Path, stop: threading.Event) -> int:
+def run(graph: Graph, log_dir: Path, stop: threading.Event, dds_interface: str = "") -> int:
     """Start the graph, wait for the main node to exit (or for `stop`), stop everything; main's exit code.
 
     The nodes start together; the learner waits for the rig and the recorder itself (its `recorder_node`
     parameter). When another node exits first, the run is stopped: nothing runs unrecorded or unattended.
+    A graph without a main node (the rig host's part) runs until `stop`; its exit code is then 0.
     """
     procs: list[Process] = []
     code = 1
     with tempfile.TemporaryDirectory(prefix="g2p-bringup-") as params_dir:
         try:
-            procs = [Process(spec, Path(params_dir), log_dir) for spec in graph.nodes]
-            main = next(p for p in procs if p.spec is graph.main)
-            while main.running() and not stop.is_set():
+            env = _node_environment(dds_interface, Path(params_dir))
+            procs = [Process(spec, Path(params_dir), log_dir, env) for spec in graph.nodes]
+            main = next((p for p in procs if p.spec is graph.main), None)
+            while (main is None or main.running()) and not stop.is_set():
                 ended = [p for p in procs if p is not main and not p.running()]
                 if ended:
                     print(
@@ -142,10 +171,12 @@ def run(graph: Graph, log_dir: Path, stop: threading.Event) -> int:
                         f"stopping the run; see {ended[0].log_path}",
                         file=sys.stderr,
                     )
-                    main.stop()
+                    if main is not None:
+                        main.stop()
                     return 1
                 time.sleep(0.1)
-            code = main.stop()  # on stop: SIGINT lets the learner cancel its goal (rig to baseline)
+            # On stop: SIGINT lets the learner cancel its goal (rig to baseline).
+            code = main.stop() if main is not None else 0
         finally:
             # Rig before recorder, so the recorder sees everything the rig published.
             for proc in procs:
@@ -165,20 +196,31 @@ def main(args: list[str] | None = None) -> None:
             options.graph or Path(get_package_share_directory("g2p_bringup")) / "config" / "graph.yaml"
         )
         graph = load_graph(
-            graph_path, options.rig, {"run_id": run_id, "bags_dir": options.bags_dir}, _overrides(options.set)
+            graph_path,
+            options.rig,
+            {"run_id": run_id, "bags_dir": options.bags_dir},
+            _overrides(options.set),
+            options.host,
         )
         log_dir = Path("log") / "runs" / run_id
         log_dir.mkdir(parents=True, exist_ok=True)
+        where = f" on the {options.host} host over {options.dds_interface}" if options.host else ""
         print(
-            f"bringup: run {run_id}: {', '.join(n.name for n in graph.nodes)} in {graph.namespace} "
+            f"bringup: run {run_id}: {', '.join(n.name for n in graph.nodes)} in {graph.namespace}{where} "
             f"(logs in {log_dir})",
             flush=True,
         )
-        code = run(graph, log_dir, stop)
+        if options.host == "rig":
+            print(
+                "bringup: serving the rig until Ctrl-C; start the learner with "
+                "`bringup --host workstation --dds-interface <its interface>` on the workstation",
+                flush=True,
+            )
+        code = run(graph, log_dir, stop, options.dds_interface)
         bag = Path(options.bags_dir) / run_id
         if not options.no_report and (bag / "metadata.yaml").exists():
             subprocess.run([sys.executable, "-m", "g2p.bags.report", str(bag)], check=False)  # g2p-report
-    except (GraphError, PackageNotFoundError) as err:
+    except (GraphError, PackageNotFoundError, ValueError) as err:
         print(f"bringup: {err}", file=sys.stderr)
         code = 2
     finally:

@@ -9,34 +9,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-from xml.etree import ElementTree
 
 import yaml
-from ament_index_python.packages import get_package_share_directory
 
-# The variables naming Fast DDS's XML profiles file: 3.x (Kilted and later) reads the first, 2.x (Jazzy)
-# the second. Each reads only its own; setting both makes 3.x load the file twice and reject its profile.
-PROFILE_VARIABLES = ("FASTDDS_DEFAULT_PROFILES_FILE", "FASTRTPS_DEFAULT_PROFILES_FILE")
-
-
-def profile_variable() -> str:
-    """The variable the installed Fast DDS reads its profiles file from.
-
-    rmw_fastrtps 9 and later (Kilted on) are built on Fast DDS 3; rmw_fastrtps 8 (Jazzy) on Fast DDS 2.
-    """
-    package_xml = Path(get_package_share_directory("rmw_fastrtps_cpp")) / "package.xml"
-    version = ElementTree.parse(package_xml).getroot().findtext("version", "0")
-    return PROFILE_VARIABLES[0] if int(version.split(".")[0]) >= 9 else PROFILE_VARIABLES[1]
-
-
-def profile_environment(environ: dict[str, str], profile: Path) -> dict[str, str]:
-    """The variable to add to `environ` so that the installed Fast DDS loads `profile`.
-
-    Nothing when the user named a profiles file already (in either variable): theirs is used.
-    """
-    if any(environ.get(name) for name in PROFILE_VARIABLES):
-        return {}
-    return {profile_variable(): str(profile)}
+# The hosts a graph may span: the rig's (the Raspberry Pi, or the machine running the simulator) and the
+# workstation's (the learner). On one host, both are this host.
+HOSTS = ("rig", "workstation")
 
 
 class GraphError(ValueError):
@@ -56,6 +34,7 @@ class NodeSpec:
         remappings: topic/service/action remappings, from -> to.
         arguments: extra command-line arguments before --ros-args.
         main: the graph ends when this node's process exits.
+        host: which host of a two-host graph runs the node (one of HOSTS); the rig always runs on "rig".
     """
 
     name: str
@@ -66,6 +45,7 @@ class NodeSpec:
     remappings: dict[str, str] = field(default_factory=dict)
     arguments: tuple[str, ...] = ()
     main: bool = False
+    host: str = "rig"
 
     def parameters_yaml(self) -> str:
         """The node's parameters as a ROS 2 parameters file."""
@@ -84,20 +64,23 @@ class NodeSpec:
 
 @dataclass(frozen=True)
 class Graph:
-    """A resolved graph: the rig first, then the other nodes in start order.
+    """A resolved graph (or one host's part of it): the rig first, then the other nodes in start order.
 
     Attributes:
         namespace: namespace of every node.
-        nodes: the rig, then the other nodes, in start order.
+        nodes: the nodes, in start order.
     """
 
     namespace: str
     nodes: tuple[NodeSpec, ...]
 
     @property
-    def main(self) -> NodeSpec:
-        """The node whose exit ends the graph (the last one when none is marked)."""
-        return next((n for n in self.nodes if n.main), self.nodes[-1])
+    def main(self) -> NodeSpec | None:
+        """The node whose exit ends the graph, the marked one.
+
+        None when this part has none: the rig host's part of a two-host graph serves until it is stopped.
+        """
+        return next((n for n in self.nodes if n.main), None)
 
 
 def load_graph(
@@ -105,6 +88,7 @@ def load_graph(
     rig: str | None = None,
     substitutions: dict[str, str] | None = None,
     overrides: dict[str, dict[str, Any]] | None = None,
+    host: str | None = None,
 ) -> Graph:
     """Read a graph description and resolve it.
 
@@ -113,10 +97,14 @@ def load_graph(
         rig: which entry of `rigs` to use; the first when None.
         substitutions: values for `{name}` placeholders in string parameters and remappings.
         overrides: extra parameters per node name ("rig" addresses the rig), applied last.
+        host: only the nodes of this host (one of HOSTS); every node when None (one host).
 
     Raises:
-        GraphError: the file is unreadable or invalid, the rig is unknown, or a placeholder has no value.
+        GraphError: the file is unreadable or invalid, the rig or host is unknown, or a placeholder has
+            no value.
     """
+    if host is not None and host not in HOSTS:
+        raise GraphError(f"unknown host {host!r}; choose one of {list(HOSTS)}")
     try:
         doc = yaml.safe_load(path.read_text())
     except (OSError, yaml.YAMLError) as err:
@@ -154,13 +142,18 @@ def load_graph(
                     },
                     arguments=tuple(str(a) for a in entry.get("arguments", [])),
                     main=bool(entry.get("main", False)),
+                    host="rig" if key == "rig" else str(entry.get("host", "rig")),
                 )
             )
         except KeyError as err:
             raise GraphError(f"{where}: missing {err}") from err
+        if nodes[-1].host not in HOSTS:
+            raise GraphError(f"{where}: unknown host {nodes[-1].host!r}; choose one of {list(HOSTS)}")
     unknown = set(extra) - {"rig"} - {n.name for n in nodes[1:]}
     if unknown:
         raise GraphError(f"{path}: overrides for unknown nodes {sorted(unknown)}")
+    if host is not None:
+        nodes = [n for n in nodes if n.host == host]
     return Graph(namespace, tuple(nodes))
 
 

@@ -19,7 +19,8 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from g2p.bags.runs import new_run_id
-from g2p_bringup.graph import load_graph, profile_environment
+from g2p_bringup.dds import profile_environment
+from g2p_bringup.graph import load_graph
 
 
 def _nodes(context, *args, **kwargs):

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from g2p_bringup.bringup import _node_environment
-from g2p_bringup.graph import PROFILE_VARIABLES, profile_variable
+from g2p_bringup.dds import PROFILE_VARIABLES, profile_variable
 
 PROBE = "import rclpy; rclpy.init(); rclpy.create_node('profile_probe').destroy_node(); rclpy.shutdown()"
 

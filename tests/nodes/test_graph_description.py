@@ -9,7 +9,7 @@ from ament_index_python.packages import get_package_share_directory
 
 from g2p.hardware.fake_rig import FakeRigConfig
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, TREADMILL_CARRIAGE_HEIGHT_M, MujocoLegConfig
-from g2p_bringup.graph import load_graph
+from g2p_bringup.graph import GraphError, load_graph
 
 GRAPH = Path(get_package_share_directory("g2p_bringup")) / "config" / "graph.yaml"
 SUBSTITUTIONS = {"run_id": "test-run", "bags_dir": "bags"}
@@ -37,4 +37,15 @@ def test_every_rig_ends_with_the_learner_as_main_node() -> None:
         graph = load_graph(GRAPH, rig, SUBSTITUTIONS)
         assert graph.namespace == "/leg"
         assert [n.name for n in graph.nodes[1:]] == ["recorder", "learner"]
-        assert graph.main.name == "learner"
+        assert graph.main is not None and graph.main.name == "learner"
+
+
+def test_two_hosts_split_the_graph_rig_and_recorder_beside_it_learner_on_the_workstation() -> None:
+    rig_side = load_graph(GRAPH, "hardware", SUBSTITUTIONS, host="rig")
+    assert [n.name for n in rig_side.nodes] == ["driver", "recorder"]
+    assert rig_side.main is None  # the rig host serves until it is stopped
+    workstation = load_graph(GRAPH, "hardware", SUBSTITUTIONS, host="workstation")
+    assert [n.name for n in workstation.nodes] == ["learner"]
+    assert workstation.main is not None and workstation.main.name == "learner"
+    with pytest.raises(GraphError, match="unknown host 'laptop'"):
+        load_graph(GRAPH, "sim", SUBSTITUTIONS, host="laptop")
