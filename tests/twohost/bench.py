@@ -326,10 +326,13 @@ class TwoHostBench:
         return self._forwarder_log.read()
 
     def close(self) -> None:
-        """Stop every process in both namespaces, the forwarder, and delete the namespaces. Idempotent."""
+        """Stop every process in both namespaces, the forwarder, and delete the namespaces.
+
+        Idempotent, and every step can be repeated: if a second Ctrl-C interrupts it, the atexit hook runs
+        it again.
+        """
         if self._closed:
             return
-        self._closed = True
         errors: list[str] = []
         for ns in self._created:
             _kill_all_in(ns)
@@ -348,6 +351,7 @@ class TwoHostBench:
             self._forwarder_log.close()
         if self._lock is not None:
             self._lock.close()  # releases the flock
+        self._closed = True
         _open_benches.discard(self)
         if errors:
             raise BenchError("; ".join(errors))
@@ -373,9 +377,9 @@ class TwoHostBench:
                 stream.close()  # type: ignore[union-attr]
 
     @property
-    def forwarder_pid(self) -> int | None:
-        """Pid of the forwarder process (None before it starts)."""
-        return self._forwarder.pid if self._forwarder is not None else None
+    def forwarder(self) -> subprocess.Popen[str] | None:
+        """The forwarder process (None before it starts); its pid is not in either namespace."""
+        return self._forwarder
 
     # -- processes --------------------------------------------------------------------------------------
 
@@ -461,6 +465,17 @@ class TwoHostBench:
         reply = self.command({"cmd": "counters"})
         reply.pop("ok", None)
         return reply
+
+    def link_stats(self, host: Host) -> dict[str, dict[str, int]]:
+        """The kernel's counters of ``host``'s TUN device: ``{"rx": {...}, "tx": {...}}``, packets, bytes...
+
+        ``tx.dropped`` on the sending side counts packets the kernel dropped because the forwarder did not
+        read them in time (its queue of ``txqueuelen`` packets was full): losses the forwarder cannot see.
+        """
+        tun = self.rig_tun if host == "rig" else self.ws_tun
+        out = self._in(self.ns(host), "-j", "-s", "link", "show", "dev", tun)
+        stats = json.loads(out)[0]["stats64"]
+        return {"rx": dict(stats["rx"]), "tx": dict(stats["tx"])}
 
     def reset_counters(self) -> None:
         """Zero the forwarder's counters and hold-time statistics."""

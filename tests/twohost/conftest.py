@@ -2,17 +2,20 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterator
 
 import pytest
 
 from tests.twohost.bench import TwoHostBench, available
 
+_available = functools.cache(available)  # the answer does not change during a session
+
 
 @pytest.fixture
 def two_host_bench() -> Iterator[TwoHostBench]:
     """A rig and a workstation namespace joined by a clean TUN link, torn down after the test."""
-    reason = available()
+    reason = _available()
     if reason is not None:
         pytest.skip(reason)
     with TwoHostBench() as bench:

@@ -19,7 +19,15 @@ from typing import Any
 
 import pytest
 
-from tests.twohost.bench import NETNS_DIR, TwoHostBench, _pid_alive, available, cleanup_stale, netns_pids
+from tests.twohost.bench import (
+    NETNS_DIR,
+    BenchError,
+    TwoHostBench,
+    _pid_alive,
+    available,
+    cleanup_stale,
+    netns_pids,
+)
 
 PROBE = [sys.executable, str(Path(__file__).with_name("udp_probe.py"))]
 GROUP = "239.255.0.1"  # Fast DDS's default discovery multicast group
@@ -129,6 +137,7 @@ def test_loss_matches_binomial_and_counters(two_host_bench: TwoHostBench, report
     p, n = 0.02, 5000
     bench.impair(loss=p, direction="ws_to_rig")
     bench.reset_counters()
+    kernel_before = bench.link_stats("ws")["tx"]["dropped"]
     rx = start(bench, "rig", "recv", "--port", str(PORT), "--count", str(n), "--idle", "3")
     sent = send(bench, "ws", bench.rig_ip, n, 1000, size=200)
     got = result(rx)
@@ -138,8 +147,9 @@ def test_loss_matches_binomial_and_counters(two_host_bench: TwoHostBench, report
     report(f"loss 2 %: {lost} of {n} lost ({lost / n:.2%}); expected {n * p:.0f} ± {sigma:.1f} (1 sigma)")
     assert abs(lost - n * p) <= 4 * sigma
     c = bench.counters()["ws_to_rig"]
+    kernel_drops = bench.link_stats("ws")["tx"]["dropped"] - kernel_before  # forwarder too slow: expect 0
     assert c["forwarded_packets"] == got["received"]
-    assert c["dropped_loss_packets"] == lost
+    assert c["dropped_loss_packets"] + kernel_drops == lost
     assert c["dropped_partition_packets"] == 0 and c["dropped_overflow_packets"] == 0
     # Each received sequence number is unique: the forwarder drops, never duplicates.
     assert len({seq for seq, *_ in got["records"]}) == got["received"]
@@ -238,20 +248,48 @@ def test_exit_removes_namespaces_and_processes() -> None:
     with TwoHostBench() as bench:
         names = [bench.rig_ns, bench.ws_ns]
         pids, untracked = _populate(bench)
-        pids.append(bench.forwarder_pid)  # type: ignore[arg-type]
+        pids.append(bench.forwarder.pid)  # type: ignore[union-attr]
     untracked.wait(timeout=10)  # our child, killed by the bench; reap it
     _assert_gone(names, pids)
 
 
 @needs_bench
-def test_exception_inside_with_removes_everything() -> None:
-    with pytest.raises(RuntimeError, match="test failure"), TwoHostBench() as bench:
+@pytest.mark.parametrize("error", [RuntimeError, KeyboardInterrupt])
+def test_exception_inside_with_removes_everything(error: type[BaseException]) -> None:
+    with pytest.raises(error, match="test failure"), TwoHostBench() as bench:
         names = [bench.rig_ns, bench.ws_ns]
         pids, untracked = _populate(bench)
-        pids.append(bench.forwarder_pid)  # type: ignore[arg-type]
-        raise RuntimeError("test failure")
+        pids.append(bench.forwarder.pid)  # type: ignore[union-attr]
+        raise error("test failure")
     untracked.wait(timeout=10)
     _assert_gone(names, pids)
+
+
+@needs_bench
+@pytest.mark.parametrize("how", ["SIGTERM", "stdin EOF"])
+def test_forwarder_exits_cleanly(how: str) -> None:
+    with TwoHostBench() as bench:
+        fwd = bench.forwarder
+        assert fwd is not None and fwd.stdin is not None
+        if how == "SIGTERM":
+            fwd.terminate()
+        else:
+            fwd.stdin.close()
+        assert fwd.wait(timeout=10) == 0, bench.forwarder_log()
+        # Its TUN devices went with it.
+        for ns in (bench.rig_ns, bench.ws_ns):
+            links = subprocess.run(["ip", "-n", ns, "-o", "link"], capture_output=True, text=True).stdout
+            assert "g2p" not in links, links
+
+
+def test_bad_commands_are_refused_clearly(two_host_bench: TwoHostBench) -> None:
+    with pytest.raises(BenchError, match=r"loss=2\.0 out of range"):
+        two_host_bench.impair(loss=2.0)
+    with pytest.raises(BenchError, match="unknown cmd 'shake'"):
+        two_host_bench.command({"cmd": "shake"})
+    with pytest.raises(ValueError, match="host must be 'rig' or 'ws'"):
+        two_host_bench.ns("server")  # type: ignore[arg-type]
+    assert two_host_bench.counters()["ws_to_rig"]["loss"] == 0.0  # the refused setting was not applied
 
 
 @needs_bench
@@ -292,10 +330,12 @@ def test_forwarder_throughput(two_host_bench: TwoHostBench, report: Any) -> None
     for delay_ms, rate, count in ((0, 2000, 4000), (0, 5000, 10000), (20, 5000, 10000), (0, 0, 20000)):
         bench.impair(delay_ms=delay_ms)
         bench.reset_counters()
+        kernel_before = bench.link_stats("ws")["tx"]["dropped"]
         rx = start(bench, "rig", "recv", "--port", str(PORT), "--count", str(count), "--idle", "2")
         sent = send(bench, "ws", bench.rig_ip, count, rate, size=size)
         got = result(rx)
         c = bench.counters()["ws_to_rig"]
+        kernel_drops = bench.link_stats("ws")["tx"]["dropped"] - kernel_before
         recs = got["records"]
         span_s = (recs[-1][2] - recs[0][2]) / 1e9 if len(recs) > 1 else float("nan")
         send_span_s = (sent["send_ns"][-1] - sent["send_ns"][0]) / 1e9
@@ -304,7 +344,8 @@ def test_forwarder_throughput(two_host_bench: TwoHostBench, report: Any) -> None
             f"{sent['sent'] / send_span_s:.0f} pps, received {got['received']} at "
             f"{got['received'] / span_s:.0f} pps ({got['received'] * (size + 28) * 8 / span_s / 1e6:.0f} "
             "Mbit/s); forwarder hold "
-            f"mean {c['hold_ms']['mean']:.3f} ms max {c['hold_ms']['max']:.3f} ms"
+            f"mean {c['hold_ms']['mean']:.3f} ms max {c['hold_ms']['max']:.3f} ms; lost {kernel_drops} "
+            f"in the TUN queue (forwarder behind), {c['forwarded_packets'] - got['received']} at the receiver"
         )
         assert got["received"] > 0
         assert c["forwarded_packets"] >= got["received"]  # the receiver may lose some; the link never invents
