@@ -1,0 +1,351 @@
+"""The two-host bench, tested with real UDP datagrams between its namespaces (udp_probe.py in each).
+
+Rates are modest and tolerances leave room for a loaded 2-core VM: the forwarder's hold times are exact by
+construction, so lower bounds are tight, while upper bounds allow for scheduling delays on the way.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import select
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.twohost.bench import (
+    NETNS_DIR,
+    BenchError,
+    TwoHostBench,
+    _pid_alive,
+    available,
+    cleanup_stale,
+    netns_pids,
+)
+
+PROBE = [sys.executable, str(Path(__file__).with_name("udp_probe.py"))]
+GROUP = "239.255.0.1"  # Fast DDS's default discovery multicast group
+PORT = 5600
+MARGIN_MS = 25.0  # worst-case extra latency (ms) from scheduling on a busy 2-core VM, beyond the hold time
+
+_UNAVAILABLE = available()
+needs_bench = pytest.mark.skipif(_UNAVAILABLE is not None, reason=str(_UNAVAILABLE))
+
+
+@pytest.fixture
+def report(capsys: pytest.CaptureFixture[str]) -> Iterator[Any]:
+    """Print a measured figure even under -q (pytest would otherwise capture it)."""
+
+    def emit(text: str) -> None:
+        with capsys.disabled():
+            print(f"\n[twohost] {text}")
+
+    yield emit
+
+
+def start(bench: TwoHostBench, host: str, *args: str) -> subprocess.Popen[str]:
+    """Start udp_probe.py in ``host``; for recv/echo, return once it has bound its socket."""
+    proc = bench.popen(host, [*PROBE, *args], stdout=subprocess.PIPE, text=True)  # type: ignore[arg-type]
+    if args[0] in ("recv", "echo"):
+        ready, _, _ = select.select([proc.stdout], [], [], 20)
+        line = proc.stdout.readline() if ready else ""  # type: ignore[union-attr]
+        assert json.loads(line or "{}").get("ready"), f"udp_probe {args[0]} did not start: {line!r}"
+    return proc
+
+
+def result(proc: subprocess.Popen[str], timeout: float = 60) -> dict[str, Any]:
+    """The probe's final JSON line."""
+    out, _ = proc.communicate(timeout=timeout)
+    assert proc.returncode == 0, f"udp_probe failed (exit {proc.returncode}): {out!r}"
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def send(bench: TwoHostBench, host: str, to: str, count: int, rate: float, size: int = 64) -> dict[str, Any]:
+    args = ["--to", to, "--port", str(PORT), "--count", str(count), "--rate", str(rate), "--size", str(size)]
+    return result(start(bench, host, "send", *args))
+
+
+def test_clean_link_both_ways(two_host_bench: TwoHostBench) -> None:
+    bench = two_host_bench
+    assert bench.rig_ip != bench.ws_ip and bench.rig_ns != bench.ws_ns
+    for src, dst in (("ws", "rig"), ("rig", "ws")):
+        rx = start(bench, dst, "recv", "--port", str(PORT), "--count", "100", "--idle", "2")
+        sent = send(bench, src, bench.ip(dst), 100, 200)
+        got = result(rx)
+        assert sent["sent"] == 100 and got["received"] == 100
+    c = bench.counters()
+    assert c["ws_to_rig"]["forwarded_packets"] == 100 and c["rig_to_ws"]["forwarded_packets"] == 100
+    # 64-byte payload + 8 UDP + 20 IP header bytes.
+    assert c["ws_to_rig"]["forwarded_bytes"] == 100 * 92
+
+
+def test_delay_and_jitter(two_host_bench: TwoHostBench, report: Any) -> None:
+    bench = two_host_bench
+    bench.impair(delay_ms=20, jitter_ms=10)
+    bench.reset_counters()
+    n = 500
+    rx = start(bench, "rig", "recv", "--port", str(PORT), "--count", str(n), "--idle", "2")
+    sent = send(bench, "ws", bench.rig_ip, n, 100)
+    got = result(rx)
+    assert got["received"] == n == sent["sent"]
+    one_way = sorted((recv - snd) / 1e6 for _, snd, recv, _ in got["records"])
+    mean, sd = statistics.fmean(one_way), statistics.pstdev(one_way)
+    p98 = one_way[int(0.98 * n)]
+    report(
+        f"one-way 20±10 ms: mean {mean:.2f} ms, sd {sd:.2f} ms (uniform: 5.77), min {one_way[0]:.2f}, "
+        f"p98 {p98:.2f}, max {one_way[-1]:.2f} ms"
+    )
+    # The forwarder holds every packet >= 10 ms; the way through the kernels only adds to that.
+    assert one_way[0] >= 10.0
+    assert abs(mean - 20.0) < 3.0
+    assert p98 <= 30.0 + 5.0 and one_way[-1] <= 30.0 + MARGIN_MS
+    # The jitter really spans its range: P(no sample below 12 ms in 500) = 0.9**500.
+    assert one_way[0] < 12.0 and one_way[-1] > 28.0
+    assert abs(sd - 20 / math.sqrt(12)) < 1.0
+    seqs = [seq for seq, *_ in got["records"]]
+    assert seqs != sorted(seqs), "with ±10 ms jitter at 10 ms spacing packets reorder (netem semantics)"
+
+    hold = bench.counters()["ws_to_rig"]
+    assert hold["hold_ms"]["count"] == n and hold["reordered_packets"] > 0
+    assert hold["hold_ms"]["min"] >= 10.0 and hold["hold_ms"]["max"] <= 30.0 + MARGIN_MS
+    assert abs(hold["hold_ms"]["mean"] - 20.0) < 2.0
+    report(f"forwarder hold times: {hold['hold_ms']}, reordered {hold['reordered_packets']}")
+
+    # Round trip: two independent 20±10 ms legs, so 40 ms mean within [20, 60] ms.
+    echo = start(bench, "rig", "echo", "--port", str(PORT + 1))
+    rtt_args = f"--to {bench.rig_ip} --port {PORT + 1} --count 100 --rate 20".split()
+    rtt = result(start(bench, "ws", "rtt", *rtt_args))
+    echo.terminate()
+    assert rtt["lost"] == 0
+    rtts = sorted(rtt["rtt_ms"])
+    report(
+        f"round trip 2x(20±10) ms: mean {statistics.fmean(rtts):.2f} ms, "
+        f"min {rtts[0]:.2f}, max {rtts[-1]:.2f} ms"
+    )
+    assert rtts[0] >= 20.0 and rtts[-1] <= 60.0 + MARGIN_MS
+    assert abs(statistics.fmean(rtts) - 40.0) < 5.0
+
+
+def test_loss_matches_binomial_and_counters(two_host_bench: TwoHostBench, report: Any) -> None:
+    bench = two_host_bench
+    p, n = 0.02, 5000
+    bench.impair(loss=p, direction="ws_to_rig")
+    bench.reset_counters()
+    kernel_before = bench.link_stats("ws")["tx"]["dropped"]
+    rx = start(bench, "rig", "recv", "--port", str(PORT), "--count", str(n), "--idle", "3")
+    sent = send(bench, "ws", bench.rig_ip, n, 1000, size=200)
+    got = result(rx)
+    assert sent["sent"] == n and sent["errors"] == 0
+    lost = n - got["received"]
+    sigma = math.sqrt(n * p * (1 - p))
+    report(f"loss 2 %: {lost} of {n} lost ({lost / n:.2%}); expected {n * p:.0f} ± {sigma:.1f} (1 sigma)")
+    assert abs(lost - n * p) <= 4 * sigma
+    c = bench.counters()["ws_to_rig"]
+    kernel_drops = bench.link_stats("ws")["tx"]["dropped"] - kernel_before  # forwarder too slow: expect 0
+    assert c["forwarded_packets"] == got["received"]
+    assert c["dropped_loss_packets"] + kernel_drops == lost
+    assert c["dropped_partition_packets"] == 0 and c["dropped_overflow_packets"] == 0
+    # Each received sequence number is unique: the forwarder drops, never duplicates.
+    assert len({seq for seq, *_ in got["records"]}) == got["received"]
+
+
+def test_partition_stops_everything_and_restore_resumes(two_host_bench: TwoHostBench, report: Any) -> None:
+    bench = two_host_bench
+    rate, n = 200, 1000  # a 5 s stream; cut from about 1 s to 2.5 s
+    rx = start(bench, "rig", "recv", "--port", str(PORT), "--duration", "30", "--idle", "3")
+    tx = start(bench, "ws", "send", *f"--to {bench.rig_ip} --port {PORT} --count {n} --rate {rate}".split())
+    time.sleep(1.0)
+    bench.partition()
+    cut_ns = time.monotonic_ns()  # the forwarder has answered: the cut is in force
+    time.sleep(1.5)
+    heal_ns = time.monotonic_ns()
+    bench.restore()
+    sent, got = result(tx), result(rx)
+    assert sent["sent"] == n
+    received = {seq: recv for seq, _, recv, _ in got["records"]}
+    during = [seq for seq, t in enumerate(sent["send_ns"]) if cut_ns <= t <= heal_ns]
+    assert len(during) > 0.5 * rate * 1.5, "the sender kept sending through the partition"
+    assert not [seq for seq in during if seq in received], "packets crossed a partition"
+    after = [recv for seq, recv in received.items() if sent["send_ns"][seq] > heal_ns]
+    assert after, "traffic did not resume after restore"
+    resume_s = (min(after) - heal_ns) / 1e9
+    report(
+        f"partition: {len(during)} packets sent during the cut, none crossed; "
+        f"resumed {resume_s * 1e3:.1f} ms after restore"
+    )
+    assert resume_s < 0.5
+    c = bench.counters()["ws_to_rig"]
+    assert c["dropped_partition_packets"] + c["forwarded_packets"] == n
+    assert c["dropped_partition_packets"] >= len(during)
+
+    # Both ways: rig -> ws is cut too, and packets held for delay when the cut comes are lost.
+    bench.reset_counters()
+    bench.partition()
+    rx = start(bench, "ws", "recv", "--port", str(PORT), "--duration", "3", "--idle", "3")
+    send(bench, "rig", bench.ws_ip, 50, 500)
+    assert result(rx)["received"] == 0
+    assert bench.counters()["rig_to_ws"]["dropped_partition_packets"] == 50
+    bench.restore()
+    bench.impair(delay_ms=500)
+    bench.reset_counters()
+    rx = start(bench, "ws", "recv", "--port", str(PORT), "--duration", "3", "--idle", "3")
+    send(bench, "rig", bench.ws_ip, 20, 200)  # 0.1 s of sending: all still held when the cut comes
+    bench.partition()
+    assert bench.counters()["rig_to_ws"]["held_packets"] > 0
+    assert result(rx)["received"] == 0
+    c = bench.counters()["rig_to_ws"]
+    assert c["dropped_partition_packets"] == 20 and c["held_packets"] == 0
+
+
+def test_multicast_crosses_the_link(two_host_bench: TwoHostBench) -> None:
+    bench = two_host_bench
+    for src, dst in (("ws", "rig"), ("rig", "ws")):
+        rx_args = f"--group {GROUP} --iface {bench.ip(dst)} --port 7400 --count 50 --idle 2".split()
+        rx = start(bench, dst, "recv", *rx_args)
+        tx_args = f"--to {GROUP} --iface {bench.ip(src)} --port 7400 --count 50 --rate 100".split()
+        tx = start(bench, src, "send", *tx_args)
+        assert result(tx)["sent"] == 50
+        assert result(rx)["received"] == 50, f"multicast {src} -> {dst} did not arrive"
+
+
+def _assert_gone(names: list[str], pids: list[int]) -> None:
+    listed = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True, check=True).stdout
+    for name in names:
+        assert name not in listed and not (NETNS_DIR / name).exists(), f"namespace {name} remains"
+    alive = [pid for pid in pids if _pid_alive(pid)]
+    assert not alive, f"processes {alive} remain"
+
+
+# A process that ignores SIGTERM, so only the bench's SIGKILL ends it.
+STUBBORN = "import signal, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); print('up', flush=True); " + (
+    "time.sleep(600)"
+)
+
+
+def _populate(bench: TwoHostBench) -> tuple[list[int], subprocess.Popen[str]]:
+    """Tracked and untracked processes in both namespaces, one of which ignores SIGTERM."""
+    procs = [bench.popen(host, ["sleep", "600"]) for host in ("rig", "ws")]
+    stubborn = bench.popen("rig", [sys.executable, "-c", STUBBORN], stdout=subprocess.PIPE, text=True)
+    assert stubborn.stdout is not None and stubborn.stdout.readline() == "up\n"  # SIG_IGN is in place
+    # Not started through the bench: found by `ip netns pids`.
+    untracked = subprocess.Popen(["ip", "netns", "exec", bench.ws_ns, "sleep", "600"], text=True)
+    deadline = time.monotonic() + 10
+    while untracked.pid not in bench.pids("ws") and time.monotonic() < deadline:
+        time.sleep(0.05)
+    pids = [p.pid for p in [*procs, stubborn, untracked]]
+    assert set(pids) <= set(bench.pids("rig")) | set(bench.pids("ws"))
+    return pids, untracked
+
+
+@needs_bench
+def test_exit_removes_namespaces_and_processes() -> None:
+    with TwoHostBench() as bench:
+        names = [bench.rig_ns, bench.ws_ns]
+        pids, untracked = _populate(bench)
+        pids.append(bench.forwarder.pid)  # type: ignore[union-attr]
+    untracked.wait(timeout=10)  # our child, killed by the bench; reap it
+    _assert_gone(names, pids)
+
+
+@needs_bench
+@pytest.mark.parametrize("error", [RuntimeError, KeyboardInterrupt])
+def test_exception_inside_with_removes_everything(error: type[BaseException]) -> None:
+    with pytest.raises(error, match="test failure"), TwoHostBench() as bench:
+        names = [bench.rig_ns, bench.ws_ns]
+        pids, untracked = _populate(bench)
+        pids.append(bench.forwarder.pid)  # type: ignore[union-attr]
+        raise error("test failure")
+    untracked.wait(timeout=10)
+    _assert_gone(names, pids)
+
+
+@needs_bench
+@pytest.mark.parametrize("how", ["SIGTERM", "stdin EOF"])
+def test_forwarder_exits_cleanly(how: str) -> None:
+    with TwoHostBench() as bench:
+        fwd = bench.forwarder
+        assert fwd is not None and fwd.stdin is not None
+        if how == "SIGTERM":
+            fwd.terminate()
+        else:
+            fwd.stdin.close()
+        assert fwd.wait(timeout=10) == 0, bench.forwarder_log()
+        # Its TUN devices went with it.
+        for ns in (bench.rig_ns, bench.ws_ns):
+            links = subprocess.run(["ip", "-n", ns, "-o", "link"], capture_output=True, text=True).stdout
+            assert "g2p" not in links, links
+
+
+def test_bad_commands_are_refused_clearly(two_host_bench: TwoHostBench) -> None:
+    with pytest.raises(BenchError, match=r"loss=2\.0 out of range"):
+        two_host_bench.impair(loss=2.0)
+    with pytest.raises(BenchError, match="unknown cmd 'shake'"):
+        two_host_bench.command({"cmd": "shake"})
+    with pytest.raises(ValueError, match="host must be 'rig' or 'ws'"):
+        two_host_bench.ns("server")  # type: ignore[arg-type]
+    assert two_host_bench.counters()["ws_to_rig"]["loss"] == 0.0  # the refused setting was not applied
+
+
+@needs_bench
+def test_concurrent_benches_are_separate() -> None:
+    with TwoHostBench() as a, TwoHostBench() as b:
+        assert {a.rig_ns, a.ws_ns}.isdisjoint({b.rig_ns, b.ws_ns})
+        assert a.subnet != b.subnet
+        rx = start(b, "rig", "recv", "--port", str(PORT), "--duration", "2", "--idle", "2")
+        send(a, "ws", a.rig_ip, 20, 100)
+        assert result(rx)["received"] == 0, "a packet crossed from one bench to another"
+        assert a.counters()["ws_to_rig"]["forwarded_packets"] == 20
+
+
+@needs_bench
+def test_stale_namespaces_of_dead_owners_are_removed() -> None:
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    name = f"g2p-rig-{dead.pid}-abc123"
+    subprocess.run(["ip", "netns", "add", name], check=True)
+    sleeper = subprocess.Popen(["ip", "netns", "exec", name, "sleep", "600"])
+    deadline = time.monotonic() + 10
+    while sleeper.pid not in netns_pids(name) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    try:
+        assert name in cleanup_stale()
+        sleeper.wait(timeout=10)
+        _assert_gone([name], [sleeper.pid])
+    finally:
+        sleeper.kill()
+        subprocess.run(["ip", "netns", "delete", name], capture_output=True)
+
+
+@pytest.mark.slow
+def test_forwarder_throughput(two_host_bench: TwoHostBench, report: Any) -> None:
+    """Figures, not a timed assertion: how many ~1500-byte packets/s the forwarder carries here."""
+    bench = two_host_bench
+    size = 1400  # payload; + 28 header bytes = 1428-byte IP packets, under the 1500-byte MTU
+    for delay_ms, rate, count in ((0, 2000, 4000), (0, 5000, 10000), (20, 5000, 10000), (0, 0, 20000)):
+        bench.impair(delay_ms=delay_ms)
+        bench.reset_counters()
+        kernel_before = bench.link_stats("ws")["tx"]["dropped"]
+        rx = start(bench, "rig", "recv", "--port", str(PORT), "--count", str(count), "--idle", "2")
+        sent = send(bench, "ws", bench.rig_ip, count, rate, size=size)
+        got = result(rx)
+        c = bench.counters()["ws_to_rig"]
+        kernel_drops = bench.link_stats("ws")["tx"]["dropped"] - kernel_before
+        recs = got["records"]
+        span_s = (recs[-1][2] - recs[0][2]) / 1e9 if len(recs) > 1 else float("nan")
+        send_span_s = (sent["send_ns"][-1] - sent["send_ns"][0]) / 1e9
+        report(
+            f"throughput delay {delay_ms} ms, asked {rate or 'unpaced'} pps: sent {sent['sent']} at "
+            f"{sent['sent'] / send_span_s:.0f} pps, received {got['received']} at "
+            f"{got['received'] / span_s:.0f} pps ({got['received'] * (size + 28) * 8 / span_s / 1e6:.0f} "
+            "Mbit/s); forwarder hold "
+            f"mean {c['hold_ms']['mean']:.3f} ms max {c['hold_ms']['max']:.3f} ms; lost {kernel_drops} "
+            f"in the TUN queue (forwarder behind), {c['forwarded_packets'] - got['received']} at the receiver"
+        )
+        assert got["received"] > 0
+        assert c["forwarded_packets"] >= got["received"]  # the receiver may lose some; the link never invents
