@@ -11,13 +11,14 @@ import threading
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from g2p.attempt import AttemptOutcome, TrackingError, run_attempt
 from g2p.inverse_map import FitReport
 from g2p.learner import Learner
 from g2p.limit_cycle import LimitCycleConfig
 from g2p.rig import ProgressCallback, Rig
-from g2p.search import Phase, RewardSearch, SearchConfig
+from g2p.search import FloatArray, Phase, RewardSearch, SearchConfig
 from g2p.seeds import seed_streams
 
 
@@ -26,7 +27,7 @@ class AttemptReport:
     """One attempt of a treadmill run, with the search state after it.
 
     Attributes:
-        number: attempt number within the run (1-based).
+        number: attempt number within the run (1-based; counts the attempts before a restore).
         phase: the phase the attempt belonged to.
         outcome: what was asked, what happened, and the scores.
         sigma: standard deviation of the exploitation draw (None in exploration).
@@ -62,25 +63,57 @@ class TreadmillRun:
         self.search = RewardSearch(search)
         self.cycle = cycle
         self.reports: list[AttemptReport] = []
+        """Reports of the attempts this object ran, in order (after a restore: only those since)."""
         self._rng = seed_streams(seed).search
+        self._pending: FloatArray | None = None
 
     @property
     def finished(self) -> bool:
         """Whether the search is done or failed."""
         return self.search.finished
 
+    @property
+    def rng(self) -> np.random.Generator:
+        """The generator of the search's proposals (its `bit_generator.state` is what a checkpoint keeps)."""
+        return self._rng
+
+    @property
+    def pending_features(self) -> FloatArray | None:
+        """Features proposed for an attempt that failed, to be tried again next, shape (n_features,) (a copy).
+
+        None when the last attempt completed (or none was tried yet).
+        """
+        return None if self._pending is None else self._pending.copy()
+
+    @pending_features.setter
+    def pending_features(self, features: ArrayLike | None) -> None:
+        if features is None:
+            self._pending = None
+            return
+        f = np.array(features, dtype=np.float64)
+        if f.shape != (self.search.config.n_features,):
+            raise ValueError(
+                f"pending_features: expected shape ({self.search.config.n_features},), got {f.shape}"
+            )
+        self._pending = f
+
     def next_attempt(
         self, rig: Rig, progress: ProgressCallback | None = None, cancel: threading.Event | None = None
     ) -> AttemptReport:
         """Propose features, run them, tell the search, refine the map.
 
-        A cancelled attempt (RigCancelled) leaves the search and the map as they were.
+        Features are drawn once per attempt: when the rig fails (RigError, RigCancelled included) the
+        search, the map, the dataset and every generator are as they were before the try, and the next
+        call tries the same features again, so a retried run is the run that never failed.
         """
-        features = self.search.propose(self._rng)
+        if self._pending is None:
+            self._pending = self.search.propose(self._rng)
+        features = self._pending
         outcome, fit = self.learner.attempt(rig, features, self.cycle, True, progress, cancel)
+        self._pending = None
         told = self.search.tell(features, outcome.reward_mm)
         report = AttemptReport(
-            len(self.reports) + 1, told.phase, outcome, told.sigma, self.search.best_reward_mm, fit
+            len(self.search.history), told.phase, outcome, told.sigma, self.search.best_reward_mm, fit
         )
         self.reports.append(report)
         return report

@@ -354,7 +354,11 @@ class InverseMap:
 
     @classmethod
     def from_arrays(
-        cls, arrays: Mapping[str, ArrayLike], config: InverseMapConfig | None = None, source: str = "arrays"
+        cls,
+        arrays: Mapping[str, ArrayLike],
+        config: InverseMapConfig | None = None,
+        source: str = "arrays",
+        validation_mask: ArrayLike | None = None,
     ) -> InverseMap:
         """Rebuild a map from `to_arrays` output.
 
@@ -363,9 +367,13 @@ class InverseMap:
             config: training parameters for later refinements; n_hidden and the activation range come from
                 the arrays.
             source: what the arrays came from, for error messages (e.g. a file name).
+            validation_mask: the saved map's `validation_mask`, shape (N,) bool, so that the next refinement
+                keeps each of the first N samples on its side of the split, as the saved map would; None:
+                the next refinement splits all samples afresh.
 
         Raises:
-            InverseMapFormatError: missing or extra names, wrong version, shapes or non-finite values.
+            InverseMapFormatError: missing or extra names, wrong version, shapes or non-finite values, or a
+                validation mask that is not a 1-D boolean array with samples on both sides.
         """
         version = np.asarray(arrays.get("format_version", np.array([])), dtype=np.float64).ravel()
         if version.shape != (1,) or version[0] != FORMAT_VERSION:
@@ -406,6 +414,14 @@ class InverseMap:
         net._params = [a[k].copy() for k in ("w_hidden", "b_hidden", "w_out", "b_out")]
         net._x = _Scaling(a["x_offset"], a["x_scale"])
         net._y = _Scaling(a["y_offset"], a["y_scale"])
+        if validation_mask is not None:
+            mask = np.asarray(validation_mask)
+            if mask.dtype != np.bool_ or mask.ndim != 1 or mask.all() or not mask.any():
+                raise InverseMapFormatError(
+                    f"{source}: validation_mask must be a 1-D boolean array with samples on both sides, "
+                    f"got dtype {mask.dtype}, shape {mask.shape}"
+                )
+            net._is_validation = mask.copy()
         return net
 
     def save(self, path: str | os.PathLike[str]) -> None:

@@ -7,6 +7,7 @@ refines the map from its current weights on all data so far (paper, Fig 3).
 from __future__ import annotations
 
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -81,7 +82,20 @@ class Learner:
         self.inverse_map = InverseMap(self.config.inverse_map)
         self.dataset = Dataset()
         self.refinements = 0
+        self.babbling_recordings: tuple[Recording, ...] = ()
+        """The babbling recordings the map was fitted on, one per chunk played, in order."""
         self.babbling_recording: Recording | None = None
+        """The same, end to end (None before babbling)."""
+
+    @property
+    def babbling_rng(self) -> np.random.Generator:
+        """The babbling activations' generator (its `bit_generator.state` is what a checkpoint keeps)."""
+        return self._babble_rng
+
+    @property
+    def map_rng(self) -> np.random.Generator:
+        """The map's weights' and splits' generator (its `bit_generator.state` is what a checkpoint keeps)."""
+        return self._map_rng
 
     @property
     def lead_ticks(self) -> int:
@@ -124,12 +138,26 @@ class Learner:
 
     def fit_babbling(self, recordings: list[Recording]) -> FitReport:
         """Replace the dataset by babbling recordings (each a contiguous segment) and fit the map afresh."""
-        self.dataset = Dataset()
-        for rec in recordings:
-            self.dataset.add("babbling", recording_pairs(rec, self.config.preprocess))
-        self.babbling_recording = concatenate(recordings)
-        self.refinements = 0
+        self.load_data(recordings, [])
         return self.inverse_map.fit(*self.dataset.arrays(), self._map_rng)
+
+    def load_data(self, babbling: Sequence[Recording], attempts: Sequence[tuple[str, Recording]]) -> None:
+        """Rebuild the dataset as `fit_babbling` then `refine_with` build it, without fitting anything.
+
+        For resuming a run whose map is restored separately (`g2p.checkpoint`).
+
+        Args:
+            babbling: the babbling recordings, one per contiguous segment, in order.
+            attempts: (label, recording) of every refinement since babbling, in order.
+        """
+        self.dataset = Dataset()
+        for rec in babbling:
+            self.dataset.add("babbling", recording_pairs(rec, self.config.preprocess))
+        self.babbling_recordings = tuple(babbling)
+        self.babbling_recording = concatenate(babbling)
+        for label, rec in attempts:
+            self.dataset.add(label, self._attempt_pairs(rec))
+        self.refinements = len(attempts)
 
     def attempt(
         self,
@@ -152,10 +180,12 @@ class Learner:
 
     def refine_with(self, recording: Recording, label: str) -> FitReport:
         """Add an attempt's data (without its transition from rest) and refine the map on all data."""
-        pairs = recording_pairs(recording, self.config.preprocess, self.config.preprocess.transition_fraction)
-        self.dataset.add(label, pairs)
+        self.dataset.add(label, self._attempt_pairs(recording))
         self.refinements += 1
         return self.inverse_map.refine(*self.dataset.arrays(), self._map_rng)
+
+    def _attempt_pairs(self, recording: Recording) -> TrainingPairs:
+        return recording_pairs(recording, self.config.preprocess, self.config.preprocess.transition_fraction)
 
     def frozen_map(self) -> InverseMap:
         """A copy of the current map, unaffected by later refinements."""
