@@ -36,7 +36,7 @@ from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 from rclpy.utilities import remove_ros_args
 
 from g2p.bags.runs import new_run_id
-from g2p_bringup.dds import profile_environment, two_host_environment
+from g2p_bringup.dds import interface_address, profile_environment, two_host_environment
 from g2p_bringup.graph import HOSTS, Graph, GraphError, NodeSpec, load_graph
 from g2p_ros.signals import init_with_stop_event
 
@@ -100,7 +100,7 @@ def _node_environment(dds_interface: str = "", profile_dir: Path | None = None) 
     """
     env = dict(os.environ)
     if dds_interface and profile_dir is not None:
-        return two_host_environment(env, dds_interface, profile_dir)
+        return two_host_environment(env, interface_address(dds_interface), profile_dir)
     profile = Path(get_package_share_directory("g2p_bringup")) / "config" / "fastdds_discovery.xml"
     env.update(profile_environment(env, profile))
     return env

@@ -65,26 +65,33 @@ def interface_address(interface: str) -> str:
 def two_host_profile(address: str) -> str:
     """A Fast DDS profiles file: UDPv4 only, on the interface with IPv4 `address` only.
 
-    Same participant announcements as the one-host profile (every 0.25 s): after a partition, the peers
-    find each other again within a quarter of a second of the link's return.
+    Same participant announcements as the one-host profile (every 0.25 s); reliable writers' heartbeats
+    every 0.1 s, so that a sample lost on the link is asked for again within a tenth of a second.
     """
     share = Path(get_package_share_directory("g2p_bringup")) / "config"
-    template = (share / "fastdds_two_hosts.xml").read_text()
-    return template.replace("@ADDRESS@", address).replace("@MAX_MESSAGE@", str(TWO_HOST_MAX_MESSAGE_BYTES))
+    values = {
+        "@ADDRESS@": address,
+        "@MAX_MESSAGE@": str(TWO_HOST_MAX_MESSAGE_BYTES),
+        # Fast DDS 3 renamed the XML elements of the writer's times.
+        "@HEARTBEAT_PERIOD@": "heartbeat_period"
+        if profile_variable() == PROFILE_VARIABLES[0]
+        else "heartbeatPeriod",
+    }
+    text = (share / "fastdds_two_hosts.xml").read_text()
+    for placeholder, value in values.items():
+        text = text.replace(placeholder, value)
+    return text
 
 
-def two_host_environment(environ: dict[str, str], interface: str, directory: Path) -> dict[str, str]:
+def two_host_environment(environ: dict[str, str], address: str, directory: Path) -> dict[str, str]:
     """The environment of a node of a two-host graph.
 
-    `environ` with the UDP-only profile for `interface` (written into `directory`) in place of any
-    other, and discovery beyond loopback (unless the user named static peers, which then are the only
-    peers besides this host).
-
-    Raises:
-        ValueError: the interface has no IPv4 address here.
+    `environ` with the UDP-only profile for the interface with IPv4 `address` (written into `directory`)
+    in place of any other, and discovery beyond loopback (unless the user named static peers, which then
+    are the only peers besides this host).
     """
     profile = directory / "fastdds_two_hosts.xml"
-    profile.write_text(two_host_profile(interface_address(interface)))
+    profile.write_text(two_host_profile(address))
     env = {k: v for k, v in environ.items() if k not in PROFILE_VARIABLES}
     env[profile_variable()] = str(profile)
     if not environ.get("ROS_STATIC_PEERS"):

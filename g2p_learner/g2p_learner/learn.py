@@ -4,6 +4,7 @@ Hosts the learner node, sends it one `learn` goal through its own action interfa
 feedback arrives and a summary at the end. `--serve` only hosts the actions (for other clients).
 
     ros2 run g2p_learner learn [--serve] [--dataset-bag DIR] [--ros-args -p search.threshold_mm:=64.0 ...]
+    ros2 run g2p_learner learn --resume bags/<run>    # continue a run after its last completed attempt
 """
 
 from __future__ import annotations
@@ -40,7 +41,16 @@ def _parse(argv: list[str]) -> argparse.Namespace:
     parser.add_argument(
         "--dataset-bag", default="", help="build the initial map from this recorded run instead of babbling"
     )
-    return parser.parse_args(remove_ros_args(argv)[1:])
+    parser.add_argument(
+        "--resume",
+        default="",
+        metavar="BAG",
+        help="continue the run recorded in BAG from its last completed attempt (same run id)",
+    )
+    options = parser.parse_args(remove_ros_args(argv)[1:])
+    if options.resume and options.dataset_bag:
+        parser.error("--resume and --dataset-bag exclude each other")
+    return options
 
 
 class _Progress:
@@ -88,7 +98,7 @@ def _summary(result: Learn.Result, status_ok: bool, threshold_mm: float) -> str:
     return "\n".join(lines)
 
 
-def run_learning(node: LearnerNode, client: ActionClient, dataset_bag: str, stop: threading.Event) -> int:
+def run_learning(node: LearnerNode, client: ActionClient, goal: Learn.Goal, stop: threading.Event) -> int:
     """Send one learn goal to the node's own action server through `client` and report; the exit code.
 
     When `stop` is set (Ctrl-C, SIGTERM) the goal is cancelled, which drops the rig to baseline.
@@ -109,11 +119,11 @@ def run_learning(node: LearnerNode, client: ActionClient, dataset_bag: str, stop
             file=sys.stderr,
         )
         return 1
-    return _run_goal(client, dataset_bag, stop, node.config.search.threshold_mm)
+    return _run_goal(client, goal, stop, node.config.search.threshold_mm)
 
 
-def _run_goal(client: ActionClient, dataset_bag: str, stop: threading.Event, threshold_mm: float) -> int:
-    send = client.send_goal_async(Learn.Goal(dataset_bag=dataset_bag), feedback_callback=_Progress())
+def _run_goal(client: ActionClient, goal: Learn.Goal, stop: threading.Event, threshold_mm: float) -> int:
+    send = client.send_goal_async(goal, feedback_callback=_Progress())
     if not wait_for_future(send, math.inf, stop):
         return 130
     handle = send.result()
@@ -156,7 +166,8 @@ def main(args: list[str] | None = None) -> None:
         if client is None:
             stop.wait()
         else:
-            code = run_learning(node, client, options.dataset_bag, stop)
+            goal = Learn.Goal(dataset_bag=options.dataset_bag, resume_bag=options.resume)
+            code = run_learning(node, client, goal, stop)
     except ConfigError as err:
         print(f"learn: invalid parameter {err}", file=sys.stderr)
         code = 2

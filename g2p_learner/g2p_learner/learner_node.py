@@ -28,6 +28,7 @@ from std_msgs.msg import Header, String
 
 from g2p.attempt import AttemptOutcome
 from g2p.bags.runs import new_run_id
+from g2p.checkpoint import CheckpointError, capture, restore
 from g2p.config import require, require_positive
 from g2p.experiments import (
     AttemptReport,
@@ -322,10 +323,10 @@ class LearnerNode(Node):
         for name in ("babbling_duration_s", "threshold_mm"):
             value = getattr(goal, name)
             _require_goal(math.isfinite(value) and value >= 0, f"{name} must be finite and >= 0, got {value}")
-        if goal.dataset_bag:
-            _require_goal(
-                Path(goal.dataset_bag).is_dir(), f"dataset_bag {goal.dataset_bag!r} is not a directory"
-            )
+        for name in ("dataset_bag", "resume_bag"):
+            bag = getattr(goal, name)
+            _require_goal(not bag or Path(bag).is_dir(), f"{name} {bag!r} is not a directory")
+        _require_goal(not (goal.dataset_bag and goal.resume_bag), "give dataset_bag or resume_bag, not both")
 
     def _validate_track(self, goal: Track.Goal) -> None:
         _require_goal(
@@ -421,6 +422,61 @@ class LearnerNode(Node):
 
     def _execute_learn(self, goal_handle: ServerGoalHandle) -> Learn.Result:
         goal = goal_handle.request
+        if goal.resume_bag:
+            run, fit = self._resume(goal.resume_bag), None
+        else:
+            run, fit = self._start_run(goal_handle)
+        self._checkpoint(run)
+
+        def attempt_done(report: AttemptReport) -> None:
+            self._attempt_end(
+                report.phase.value,
+                report.number,
+                report.outcome,
+                sigma=report.sigma,
+                best=report.best_reward_mm,
+            )
+            self._checkpoint(run)
+            goal_handle.publish_feedback(
+                Learn.Feedback(
+                    phase=report.phase.value,
+                    babbling_progress=1.0,
+                    attempt=report.number,
+                    reward_mm=report.outcome.reward_mm,
+                    best_reward_mm=report.best_reward_mm,
+                    sigma=report.sigma or 0.0,
+                )
+            )
+
+        self._run_steps(
+            goal_handle,
+            run,
+            lambda: _Step(run.search.phase.value, len(run.search.history) + 1),
+            attempt_done,
+        )
+        result = treadmill_result(run, fit)
+        summary = {
+            "crossed_threshold": result.crossed_threshold,
+            "best_reward_mm": result.best_reward_mm,
+            "best_features": result.best_features.tolist(),
+            "exploration_attempts": result.exploration_attempts,
+            "exploitation_attempts": result.exploitation_attempts,
+        }
+        self._event("run_end", detail=summary)
+        goal_handle.succeed()
+        return Learn.Result(
+            best_features=result.best_features,
+            best_reward_mm=result.best_reward_mm,
+            crossed_threshold=result.crossed_threshold,
+            exploration_attempts=result.exploration_attempts,
+            exploitation_attempts=result.exploitation_attempts,
+            run_id=self.run_id,
+            bag_path=self.bag_path,
+        )
+
+    def _start_run(self, goal_handle: ServerGoalHandle) -> tuple[TreadmillRun, FitReport]:
+        """A new run: babble (or fit on a recorded run's data), then the search from its start."""
+        goal = goal_handle.request
         search = self.config.search_config
         search = replace(
             search,
@@ -450,51 +506,59 @@ class LearnerNode(Node):
                 )
 
             fit = self._babble(goal.babbling_duration_s or None, progress)
-        run = TreadmillRun(self.learner, search, self.config.cycle, self.config.learner.seed)
+        return TreadmillRun(self.learner, search, self.config.cycle, self.config.learner.seed), fit
 
-        def attempt_done(report: AttemptReport) -> None:
-            self._attempt_end(
-                report.phase.value,
-                report.number,
-                report.outcome,
-                sigma=report.sigma,
-                best=report.best_reward_mm,
-            )
-            goal_handle.publish_feedback(
-                Learn.Feedback(
-                    phase=report.phase.value,
-                    babbling_progress=1.0,
-                    attempt=report.number,
-                    reward_mm=report.outcome.reward_mm,
-                    best_reward_mm=report.best_reward_mm,
-                    sigma=report.sigma or 0.0,
+    def _resume(self, bag: str) -> TreadmillRun:
+        """The run recorded in `bag`, restored at its last checkpoint; the continuation keeps its id.
+
+        Raises:
+            ValueError: the bag holds no run to continue, or this node's learner and cycle settings are not
+                the recorded run's (the search's come from the bag).
+        """
+        from g2p.bags.resume import resume_point  # only runs reading a bag need the bag library
+
+        point = resume_point(bag, self.resolve_topic_name("~/config"))
+        mine = json.loads(json.dumps(config_as_dict(self.config)))  # as recorded: JSON types
+        if point.node_config is not None:
+            differ = [k for k in ("learner", "cycle") if point.node_config.get(k) != mine[k]]
+            if differ:
+                raise ValueError(
+                    f"{bag}: the recorded run's {' and '.join(differ)} settings differ from this node's; "
+                    "start the learner with the run's parameters (see its ~/config in the bag)"
                 )
+        search = SearchConfig(**point.search)
+        try:
+            run = restore(
+                point.checkpoint,
+                point.babbling,
+                point.attempts,
+                self.config.learner,
+                search,
+                self.config.cycle,
             )
-
-        self._run_steps(
-            goal_handle,
-            run,
-            lambda: _Step(run.search.phase.value, len(run.reports) + 1),
-            attempt_done,
+        except CheckpointError as err:
+            raise ValueError(f"{bag}: {err}") from err
+        self.learner = run.learner
+        self.run_id = point.run_id
+        self._event(
+            "run_start",
+            detail={
+                "search": point.search,
+                "resumed_from": {"bag": str(point.bag), "attempt": point.checkpoint.attempt},
+            },
         )
-        result = treadmill_result(run, fit)
-        summary = {
-            "crossed_threshold": result.crossed_threshold,
-            "best_reward_mm": result.best_reward_mm,
-            "best_features": result.best_features.tolist(),
-            "exploration_attempts": result.exploration_attempts,
-            "exploitation_attempts": result.exploitation_attempts,
-        }
-        self._event("run_end", detail=summary)
-        goal_handle.succeed()
-        return Learn.Result(
-            best_features=result.best_features,
-            best_reward_mm=result.best_reward_mm,
-            crossed_threshold=result.crossed_threshold,
-            exploration_attempts=result.exploration_attempts,
-            exploitation_attempts=result.exploitation_attempts,
-            run_id=self.run_id,
-            bag_path=self.bag_path,
+        self._publish_map(None)
+        self.get_logger().info(
+            f"run {self.run_id} resumed from {bag} after attempt {point.checkpoint.attempt} "
+            f"({run.search.phase.value}, best {run.search.best_reward_mm:.1f} mm)"
+        )
+        return run
+
+    def _checkpoint(self, run: TreadmillRun) -> None:
+        """Record the run's state (g2p.checkpoint): `learn --resume` continues from the last one."""
+        checkpoint = capture(run)
+        self._event(
+            "checkpoint", attempt=checkpoint.attempt, detail={"checkpoint": json.loads(checkpoint.to_json())}
         )
 
     def _fit_from_bag(self, bag: str) -> FitReport:
@@ -631,7 +695,8 @@ class LearnerNode(Node):
             best_reward_mm=best,
         )
 
-    def _publish_map(self, fit: FitReport) -> None:
+    def _publish_map(self, fit: FitReport | None) -> None:
+        """Publish the current map; `fit` is the fit or refinement that made it (None: restored)."""
         arrays = self.learner.inverse_map.to_arrays()
         self._maps.publish(
             InverseMapWeights(
@@ -640,8 +705,8 @@ class LearnerNode(Node):
                 refinement=self.learner.refinements,
                 format_version=int(arrays.pop("format_version")[0]),
                 arrays=[NamedArray(name=k, shape=list(v.shape), data=v.ravel()) for k, v in arrays.items()],
-                training_samples=fit.n_train + fit.n_validation,
-                validation_rmse=fit.validation_rmse,
+                training_samples=len(self.learner.dataset) if fit is None else fit.n_train + fit.n_validation,
+                validation_rmse=math.nan if fit is None else fit.validation_rmse,
             )
         )
 

@@ -20,13 +20,16 @@ from rclpy.task import Future
 from std_srvs.srv import Trigger
 
 from g2p.plant import NOMINAL_TICK_HZ, Recording
-from g2p.rig import RigCancelled, RigError, RigUnreachable
+from g2p.rig import RigBusy, RigCancelled, RigError, RigUnreachable
 from g2p.safety import check_activation_sequence
 from g2p_interfaces.action import RunActivations
 from g2p_ros import contract
 from g2p_ros.convert import recording_from_msg
 from g2p_ros.spinner import wait_for_future
 
+# How long the rig may take to accept a goal (s): a sequence of minutes is hundreds of kB, resent piece
+# by piece over a lossy link; a rig that is not there is found out by the reset that follows.
+GOAL_TIMEOUT_S = 10.0
 # Once the rig reported the sequence played, how long its result (all ticks) may take to arrive (s): a
 # large message over a lossy link is resent fragment by fragment.
 RESULT_TIMEOUT_S = 30.0
@@ -44,7 +47,7 @@ class RigClient:
     Args:
         node: the node to create the clients on (its executor must be spinning in another thread).
         server_timeout_s: how long to wait for the rig to appear before each call (s).
-        silence_s: longest wait for the rig's goal acknowledgement, feedback or reset answer (s).
+        silence_s: longest wait between two feedback messages while a sequence plays (s).
         reset_timeout_s: longest wait for a reset to complete (s); the hardware's reset takes seconds.
     """
 
@@ -81,12 +84,15 @@ class RigClient:
 
         Raises:
             RigUnreachable: the rig is not on the graph or did not answer within `reset_timeout_s`.
-            RigError: the rig refused (e.g. a sequence still plays).
+            RigBusy: the rig refused because a sequence still plays.
+            RigError: the reset failed on the rig.
         """
         if not self._reset_watch.wait_until_ready(self._server_timeout_s):
             raise RigUnreachable(f"no rig answers {self._reset.srv_name} within {self._server_timeout_s} s")
         response = _wait(self._reset.call_async(Trigger.Request()), self._reset_timeout_s, "reset")
         if not response.success:
+            if "in progress" in response.message:
+                raise RigBusy(f"rig reset refused: {response.message}")
             raise RigError(f"rig reset failed: {response.message}")
 
     def play(
@@ -105,7 +111,8 @@ class RigClient:
 
         Raises:
             RigUnreachable: the rig is not on the graph, or went silent (see the class docstring).
-            RigError: the rig rejected the goal or stopped early.
+            RigBusy: the rig rejected the goal (it still plays another sequence).
+            RigError: the rig stopped early.
             RigCancelled: `cancel` was set.
         """
         seq = check_activation_sequence(activations)
@@ -122,9 +129,10 @@ class RigClient:
 
         goal = RunActivations.Goal(activation=seq.ravel())
         send = self._action.send_goal_async(goal, feedback_callback=on_feedback)
-        handle = _wait(send, self._silence_s, "the run_activations goal")
+        handle = _wait(send, GOAL_TIMEOUT_S, "the run_activations goal")
         if not handle.accepted:
-            raise RigError("the rig rejected the run_activations goal (see the rig's log for the reason)")
+            # The sequence was checked here already: the rig refuses only while it is busy.
+            raise RigBusy("the rig rejected the run_activations goal: another sequence or a reset runs")
         heard[0] = time.monotonic()
         result_future = handle.get_result_async()
         # Worst case the rig plays in real time; add a margin for slow machines.

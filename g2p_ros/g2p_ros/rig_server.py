@@ -229,6 +229,7 @@ class RigServer:
             self._publisher.join(timeout=5.0)
         self._gate.stop()
         self._flush()
+        self._log.info(f"stopped after publishing {self._published} ticks")
 
     def _flush(self) -> None:
         """Wait until every subscriber acknowledged every published tick, up to `flush_timeout_s`."""

@@ -130,7 +130,7 @@ class TreadmillResult:
         exploitation_attempts: attempts in exploitation.
         best_features: features of the best attempt, shape (10,).
         best_reward_mm: its reward (mm).
-        babbling_fit: the initial fit.
+        babbling_fit: the initial fit (None for a run resumed from a checkpoint).
     """
 
     reports: tuple[AttemptReport, ...]
@@ -139,10 +139,10 @@ class TreadmillResult:
     exploitation_attempts: int
     best_features: np.ndarray
     best_reward_mm: float
-    babbling_fit: FitReport
+    babbling_fit: FitReport | None
 
 
-def treadmill_result(run: TreadmillRun, babbling_fit: FitReport) -> TreadmillResult:
+def treadmill_result(run: TreadmillRun, babbling_fit: FitReport | None) -> TreadmillResult:
     """Summarize a run (finished or stopped early)."""
     s = run.search
     best = s.best_features if s.best_features is not None else np.full(s.config.n_features, np.nan)

@@ -98,13 +98,21 @@ class PlantRig:
         return Recording.from_samples(samples)
 
 
+class RigBusy(RigError):
+    """The rig refused a sequence or reset because it still plays another one.
+
+    For example a goal that arrived late over a lossy link, after the learner had given it up: it plays
+    to its end by itself, then baseline.
+    """
+
+
 RigEventCallback = Callable[[str, dict[str, Any]], None]
 
 
 class RetryingRig:
     """A `Rig` whose calls survive the rig going away for up to `limit_s`: lost work is redone from rest.
 
-    A `play` or `reset` that fails with RigUnreachable is not used: once the rig answers a reset again,
+    A `play` or `reset` that fails with RigUnreachable or RigBusy is not used: once the rig answers a reset,
     the sequence is played again, whole, from rest (an attempt starts from rest anyway; a babbling chunk
     that followed another starts from rest instead). So a caller only ever gets complete recordings, and a
     sequence whose data is incomplete is never used. When the rig does not answer within `limit_s` of
@@ -136,7 +144,7 @@ class RetryingRig:
         """Reset the rig, waiting for it to come back if it is lost."""
         try:
             self._rig.reset()
-        except RigUnreachable as err:
+        except (RigUnreachable, RigBusy) as err:
             self._recover("reset", err, None)
 
     def play(
@@ -146,36 +154,48 @@ class RetryingRig:
         cancel: threading.Event | None = None,
     ) -> Recording:
         """Play the sequence; if the rig is lost meanwhile, play it again from rest once it is back."""
-        while True:
+        first_lost: float | None = None  # the limit counts from the first loss: a sequence that never
+        while True:  # gets through ends the run, even if resets do
             try:
                 return self._rig.play(activations, progress, cancel)
-            except RigUnreachable as err:
-                self._recover("play", err, cancel)
+            except (RigUnreachable, RigBusy) as err:
+                first_lost = time.monotonic() if first_lost is None else first_lost
+                self._recover("play", err, cancel, first_lost)
                 self.retries += 1
 
-    def _recover(self, call: str, err: RigUnreachable, cancel: threading.Event | None) -> None:
-        """Reset until the rig answers; RigUnreachable after `limit_s`, RigCancelled on `cancel`."""
-        lost_at = time.monotonic()
+    def _recover(
+        self, call: str, err: RigError, cancel: threading.Event | None, lost_at: float | None = None
+    ) -> None:
+        """Reset until the rig answers.
+
+        Raises:
+            RigUnreachable: `limit_s` passed since `lost_at` (default: now).
+            RigCancelled: `cancel` was set.
+        """
+        lost_at = time.monotonic() if lost_at is None else lost_at
         self._tell("rig_lost", {"call": call, "error": str(err)})
-        attempts = 0
+        resets = 0
+        last_error: RigError = err
         while True:
             if cancel is not None and cancel.is_set():
                 raise RigCancelled("cancel requested while waiting for the rig")
-            attempts += 1
+            waited = time.monotonic() - lost_at
+            if waited >= self._limit_s:
+                raise RigUnreachable(
+                    f"the rig has not played the sequence for {waited:.0f} s (limit {self._limit_s:g} s); "
+                    f"last error: {last_error}"
+                ) from last_error
+            resets += 1
             try:
                 self._rig.reset()
             except RigCancelled:
                 raise
             except RigError as retry_err:
-                waited = time.monotonic() - lost_at
-                if waited >= self._limit_s:
-                    raise RigUnreachable(
-                        f"the rig has not answered for {waited:.0f} s (limit {self._limit_s:g} s); "
-                        f"last error: {retry_err}"
-                    ) from retry_err
+                last_error = retry_err
                 time.sleep(self._retry_pause_s)
                 continue
-            self._tell("rig_back", {"downtime_s": round(time.monotonic() - lost_at, 3), "resets": attempts})
+            downtime = round(time.monotonic() - lost_at, 3)
+            self._tell("rig_back", {"downtime_s": downtime, "resets": resets})
             return
 
     def _tell(self, event: str, detail: dict[str, Any]) -> None:

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from g2p_bringup.bringup import _node_environment
-from g2p_bringup.dds import PROFILE_VARIABLES, profile_variable
+from g2p_bringup.dds import PROFILE_VARIABLES, profile_variable, two_host_environment
 
 PROBE = "import rclpy; rclpy.init(); rclpy.create_node('profile_probe').destroy_node(); rclpy.shutdown()"
 
@@ -53,3 +53,14 @@ def test_fast_dds_loads_the_profile_without_errors() -> None:
     # The same check catches a broken profile: the file is really read on this distribution.
     broken = dict(_node_environment(), **{profile_variable(): os.devnull})
     assert "XMLPARSER" in _probe(broken)
+
+
+def test_fast_dds_loads_the_two_host_profile_without_errors(tmp_path: Path) -> None:
+    """The UDP-only profile of a two-host graph (here for loopback's address) loads on this distribution."""
+    env = two_host_environment(
+        dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"), "127.0.0.1", tmp_path
+    )
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"  # this test stays on loopback
+    assert [name for name in PROFILE_VARIABLES if name in env] == [profile_variable()]
+    output = _probe(env)
+    assert "XMLPARSER" not in output and "Error" not in output and "WARN" not in output, output

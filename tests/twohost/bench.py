@@ -211,6 +211,7 @@ class TwoHostBench:
         self._forwarder: subprocess.Popen[str] | None = None
         self._forwarder_log: IO[str] | None = None
         self._procs: list[subprocess.Popen[Any]] = []
+        self._machine_ids: list[Path] = []
         self._created: list[str] = []
         self._ctl = threading.Lock()
         self._closed = False
@@ -347,6 +348,8 @@ class TwoHostBench:
                 _delete_netns(ns)
             except BenchError as exc:
                 errors.append(str(exc))
+        for path in self._machine_ids:
+            path.unlink(missing_ok=True)
         if self._forwarder_log is not None:
             self._forwarder_log.close()
         if self._lock is not None:
@@ -393,9 +396,25 @@ class TwoHostBench:
         """
         if self._closed or self._forwarder is None:
             raise BenchError("popen on a bench that is not open")
-        proc = subprocess.Popen(["ip", "netns", "exec", self.ns(host), *argv], env=env, **kw)
+        # Each host has its own machine id, as two computers do: Fast DDS 3 takes participants with the
+        # same /etc/machine-id for one host's and then only talks to them on whitelisted local addresses.
+        # `ip netns exec` gives the command a mount namespace of its own, so the bind mount stays in it.
+        bind = 'mount --bind "$0" /etc/machine-id && exec "$@"'
+        proc = subprocess.Popen(
+            ["ip", "netns", "exec", self.ns(host), "sh", "-c", bind, str(self._machine_id(host)), *argv],
+            env=env,
+            **kw,
+        )
         self._procs.append(proc)
         return proc
+
+    def _machine_id(self, host: Host) -> Path:
+        """A machine-id file of this host's own (32 hex digits), made on first use."""
+        path = Path(tempfile.gettempdir()) / f"{self.ns(host)}.machine-id"
+        if not path.exists():
+            path.write_text(secrets.token_hex(16) + "\n")
+            self._machine_ids.append(path)
+        return path
 
     def pids(self, host: Host) -> list[int]:
         """Pids of every process now in ``host``'s namespace."""

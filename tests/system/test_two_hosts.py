@@ -1,0 +1,341 @@
+"""The graph on two hosts over a bad network: the rig (ROS 2 Jazzy, with the recorder beside it) in one
+network namespace, the learner in another, joined by the bench's impairable link (tests/twohost).
+
+Each test is a user's run through the installed executables: `bringup --host rig|workstation`, or the
+nodes one by one where one of them is killed and started again. DDS traffic stays inside the bench's
+namespaces (UDPv4 on its TUN link only).
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from g2p.bags import bag_is_complete
+from g2p.bags.dataset import RunData, load_run
+from g2p.bags.resume import resume_point
+from g2p.safety import BASELINE_ACTIVATION
+from tests.commands import console_script
+from tests.nodes.rosproc import executable
+from tests.twohost.bench import TwoHostBench, available
+from tests.twohost.graph import SHORT_RUN, HostProcess, TwoHostGraph, ros_params, set_args
+
+SEED = 0
+SILENCE_S = 2.0  # the learner's rig_silence_s (its default)
+# Seed 0 crosses 10 mm on its fifth attempt: 5 exploration and 4 exploitation attempts.
+RUN = {**SHORT_RUN, "learner.seed": str(SEED), "search.threshold_mm": "10.0"}
+# A rig paced by the wall clock, like the hardware: babbling and attempts take their rig time. Any
+# reward crosses: 1 exploration and 2 exploitation attempts.
+REALTIME_RUN = {
+    **RUN,
+    "learner.babbling.duration_s": "8.0",
+    "search.exploitation_attempts": "2",
+    "search.threshold_mm": "-1000.0",
+}
+
+
+@pytest.fixture
+def bench() -> Iterator[TwoHostBench]:
+    reason = available()
+    if reason is not None:
+        pytest.skip(reason)
+    with TwoHostBench() as b:
+        yield b
+
+
+def graph(bench: TwoHostBench, tmp_path: Path, run_id: str = "two-hosts") -> TwoHostGraph:
+    return TwoHostGraph(bench, tmp_path, run_id)
+
+
+def attempt_ends(run: RunData) -> list[int]:
+    return [e.attempt for e in run.events if e.event == "attempt_end"]
+
+
+def rewards(run: RunData) -> list[float]:
+    return [e.reward_mm for e in run.events if e.event == "attempt_end"]
+
+
+def events(run: RunData, name: str) -> list:
+    return [e for e in run.events if e.event == name]
+
+
+def published_ticks(rig_log: str) -> int:
+    """The rig's own count of the ticks it published (its last log line)."""
+    lines = [line for line in rig_log.splitlines() if "stopped after publishing" in line]
+    assert lines, f"the rig did not say how many ticks it published:\n{rig_log[-2000:]}"
+    return int(lines[-1].split("stopped after publishing ")[1].split()[0])
+
+
+def learn_two_hosts(g: TwoHostGraph, rig: str, settings: dict[str, str]) -> tuple[HostProcess, HostProcess]:
+    """Start both sides with bringup: the rig host first, the workstation after."""
+    rig_side = g.bringup("rig", "--rig", rig)
+    workstation = g.bringup("ws", "--rig", rig, *set_args(settings, "learner"))
+    return rig_side, workstation
+
+
+def test_a_seeded_run_over_an_impaired_link_equals_the_run_over_loopback(
+    bench: TwoHostBench, tmp_path: Path
+) -> None:
+    # Loopback: the whole graph on one host, this session's distribution.
+    local = subprocess.run(
+        [
+            str(executable("g2p_bringup", "bringup")),
+            "--run-id",
+            "loopback",
+            "--no-report",
+            *set_args(RUN, "learner"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=tmp_path,
+    )
+    assert local.returncode == 0, local.stdout + local.stderr
+    # Two hosts: 20 ms +- 10 ms one way and 2 % loss, both ways.
+    bench.impair(delay_ms=20.0, jitter_ms=10.0, loss=0.02)
+    g = graph(bench, tmp_path)
+    rig_side, workstation = learn_two_hosts(g, "sim", RUN)
+    assert workstation.wait(600) == 0, workstation.log()
+    assert rig_side.stop() in (0, 130), rig_side.log()
+
+    here, there = load_run(tmp_path / "bags" / "loopback"), load_run(g.bag)
+    assert len(attempt_ends(there)) == 9
+    assert attempt_ends(there) == attempt_ends(here)
+    assert rewards(there) == rewards(here)  # bit for bit: the rig owns the timing
+    assert [m.refinement for m in there.inverse_maps] == [m.refinement for m in here.inverse_maps]
+    for a, b in zip(here.inverse_maps, there.inverse_maps, strict=True):
+        for name, array in a.arrays.items():
+            np.testing.assert_array_equal(b.arrays[name], array, err_msg=f"refinement {a.refinement} {name}")
+    # Every attempt's result held every tick, and the bag holds every tick the rig published.
+    for attempt in there.attempts:
+        assert attempt.desired_position_rad is not None
+        assert len(attempt.recording) == len(attempt.desired_position_rad)
+    assert there.ticks.incomplete == 0
+    rig_log = (tmp_path / "log" / "runs" / g.run_id / "sim.log").read_text()
+    # All but, at most, the rig's start-up rest sample: published before any subscriber could match.
+    assert published_ticks(rig_log) - 1 <= len(there.ticks.recording) <= published_ticks(rig_log)
+    # The traffic crossed the link (and some of it was lost on the way and resent).
+    counters = bench.counters()
+    for direction in ("rig_to_ws", "ws_to_rig"):
+        assert counters[direction]["forwarded_packets"] > 1000
+        assert counters[direction]["dropped_loss_packets"] > 0
+
+
+def test_a_partition_during_an_attempt_retries_it_once_the_link_returns(
+    bench: TwoHostBench, tmp_path: Path
+) -> None:
+    g = graph(bench, tmp_path)
+    rig_side, workstation = learn_two_hosts(g, "sim_realtime", REALTIME_RUN)
+    workstation.wait_for_attempt(1)
+    time.sleep(1.0)  # attempt 2 plays (4 cycles, about 4 s)
+    cut = time.time()
+    bench.partition()
+    time.sleep(3.0)
+    bench.restore()
+    healed = time.time()
+    assert workstation.wait(300) == 0, workstation.log()
+    assert rig_side.stop() in (0, 130), rig_side.log()
+
+    run = load_run(g.bag)
+    assert sorted(set(attempt_ends(run))) == [1, 2, 3]  # the planned attempts, each completed once
+    assert len(attempt_ends(run)) == 3
+    (lost,) = events(run, "rig_lost")
+    (back,) = events(run, "rig_back")
+    # Detected within the silence limit and a feedback period (and the learner's clock is this one's).
+    assert 0.0 < lost.stamp_ns * 1e-9 - cut < SILENCE_S + 1.0
+    assert back.stamp_ns * 1e-9 > healed
+    # The retried attempt's data is the one played after the link returned; the lost one's is not used.
+    retried = next(a for a in run.attempts if a.attempt == 2 and a.end is not None)
+    assert retried.recording.t_s[0] > healed
+    point = resume_point(g.bag)
+    assert point.checkpoint.attempt == 3 and len(point.attempts) == 3  # digests of the data used: verified
+    # The rig held baseline once the lost sequence was over, until the retry began.
+    first_start = next(e for e in events(run, "attempt_start") if e.attempt == 2)
+    planned = len(retried.desired_position_rad)
+    t, act = run.ticks.recording.t_s, run.ticks.recording.activation
+    stamps = run.ticks.stamps_ns
+    lost_ticks = np.flatnonzero(stamps > first_start.stamp_ns)[:planned]
+    idle = (t > t[lost_ticks[-1]] + 0.05) & (t < retried.recording.t_s[0] - 0.05)
+    assert idle.sum() > 10
+    np.testing.assert_array_equal(act[idle], BASELINE_ACTIVATION)
+    # The rig's data has no gap: the recorder beside it kept recording through the partition.
+    during = (t > cut) & (t < healed)
+    assert np.all(np.diff(t[during]) < 0.05)
+
+
+def test_a_partition_longer_than_the_limit_ends_the_run_cleanly_with_how_to_resume(
+    bench: TwoHostBench, tmp_path: Path
+) -> None:
+    g = graph(bench, tmp_path)
+    rig_side, workstation = learn_two_hosts(g, "sim", {**RUN, "learner.rig_lost_limit_s": "4.0"})
+    workstation.wait_for_attempt(1)
+    bench.partition()
+    code = workstation.wait(120)
+    bench.restore()
+    assert code == 1
+    assert "learn --resume" in workstation.log()
+    assert rig_side.stop() in (0, 130), rig_side.log()
+    run = load_run(g.bag)
+    done = sorted(set(attempt_ends(run)))
+    assert done and done == list(range(1, len(done) + 1))  # every attempt done so far is in the bag
+    assert resume_point(g.bag).checkpoint.attempt == done[-1]
+
+
+def test_a_rig_killed_and_restarted_mid_run_is_waited_for_and_the_run_completes(
+    bench: TwoHostBench, tmp_path: Path
+) -> None:
+    g = graph(bench, tmp_path)
+    rig_args = ["--ros-args", "-r", "__ns:=/leg", "-p", "time_mode:=realtime"]
+    sim = g.node("rig", "g2p_sim", "sim", *rig_args)
+    recorder = g.node(
+        "rig", "g2p_recorder", "record", "--ros-args", "-r", "__ns:=/leg", "-p", f"run_id:={g.run_id}"
+    )
+    learner = g.node(
+        "ws",
+        "g2p_learner",
+        "learn",
+        "--ros-args",
+        "-r",
+        "__ns:=/leg",
+        "-p",
+        "recorder_node:=recorder",
+        *ros_params(REALTIME_RUN),
+    )
+    learner.wait_for_attempt(1)
+    time.sleep(1.0)
+    sim.stop(signal.SIGKILL)
+    time.sleep(1.0)
+    sim = g.node("rig", "g2p_sim", "sim", *rig_args)
+    assert learner.wait(300) == 0, learner.log()
+    assert "rig lost" in learner.log() and "rig back" in learner.log()
+    sim.stop()
+    recorder.stop()
+    run = load_run(g.bag)
+    assert sorted(set(attempt_ends(run))) == [1, 2, 3]
+
+
+def test_a_learner_killed_during_exploitation_resumes_bit_for_bit_from_the_bag(
+    bench: TwoHostBench, tmp_path: Path
+) -> None:
+    # The uninterrupted run, for the answer.
+    reference = subprocess.run(
+        [
+            str(executable("g2p_bringup", "bringup")),
+            "--run-id",
+            "reference",
+            "--no-report",
+            *set_args(RUN, "learner"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=tmp_path,
+    )
+    assert reference.returncode == 0, reference.stdout + reference.stderr
+    uninterrupted = load_run(tmp_path / "bags" / "reference")
+
+    g = graph(bench, tmp_path)
+    # A fast rig slowed to 3x real time, so that the kill falls inside an attempt.
+    rig_args = [
+        "--ros-args",
+        "-r",
+        "__ns:=/leg",
+        "-p",
+        "time_mode:=fast",
+        "-p",
+        "rig.fast_max_real_time_factor:=3.0",
+    ]
+    sim = g.node("rig", "g2p_sim", "sim", *rig_args)
+    recorder = g.node(
+        "rig", "g2p_recorder", "record", "--ros-args", "-r", "__ns:=/leg", "-p", f"run_id:={g.run_id}"
+    )
+    learn_args = [
+        "--ros-args",
+        "-r",
+        "__ns:=/leg",
+        "-p",
+        "recorder_node:=recorder",
+        "-p",
+        "use_sim_time:=true",
+        *ros_params(RUN),
+    ]
+    learner = g.node("ws", "g2p_learner", "learn", *learn_args)
+    learner.wait_for_attempt(3)  # exploitation since attempt 2
+    time.sleep(0.5)
+    learner.stop(signal.SIGKILL)
+    resumed = g.node("ws", "g2p_learner", "learn", "--resume", str(g.bag), *learn_args)
+    assert resumed.wait(300) == 0, resumed.log()
+    sim.stop()
+    recorder.stop()
+
+    run = load_run(g.bag)
+    checkpoints = events(run, "checkpoint")
+    restart = next(e for e in events(run, "run_start") if "resumed_from" in e.detail)
+    k = restart.detail["resumed_from"]["attempt"]
+    assert k >= 3
+    before = next(e for e in checkpoints if e.attempt == k and e.stamp_ns < restart.stamp_ns)
+    after = next(e for e in checkpoints if e.attempt == k and e.stamp_ns >= restart.stamp_ns)
+    assert after.detail["checkpoint"] == before.detail["checkpoint"]  # bit for bit (exact JSON floats)
+    reference_k = next(e for e in events(uninterrupted, "checkpoint") if e.attempt == k)
+    assert after.detail["checkpoint"] == reference_k.detail["checkpoint"]
+
+    # The next proposal is the uninterrupted run's, and the run completes with the planned attempts.
+    def features(data: RunData, n: int) -> list[float]:
+        ends = [e for e in events(data, "attempt_end") if e.attempt == n]
+        return ends[-1].features.tolist()
+
+    assert features(run, k + 1) == features(uninterrupted, k + 1)
+    assert sorted(set(attempt_ends(run))) == sorted(set(attempt_ends(uninterrupted)))
+    assert all(e.run_id == g.run_id for e in run.events if e.run_id)  # the continuation is the same run
+
+
+def test_a_recorder_killed_mid_run_leaves_a_recoverable_bag_and_an_undisturbed_run(
+    bench: TwoHostBench, tmp_path: Path
+) -> None:
+    g = graph(bench, tmp_path)
+    rig_args = [
+        "--ros-args",
+        "-r",
+        "__ns:=/leg",
+        "-p",
+        "time_mode:=fast",
+        "-p",
+        "rig.fast_max_real_time_factor:=5.0",
+    ]
+    sim = g.node("rig", "g2p_sim", "sim", *rig_args)
+    recorder = g.node(
+        "rig", "g2p_recorder", "record", "--ros-args", "-r", "__ns:=/leg", "-p", f"run_id:={g.run_id}"
+    )
+    learner = g.node(
+        "ws",
+        "g2p_learner",
+        "learn",
+        "--ros-args",
+        "-r",
+        "__ns:=/leg",
+        "-p",
+        "recorder_node:=recorder",
+        "-p",
+        "use_sim_time:=true",
+        *ros_params(RUN),
+    )
+    learner.wait_for_attempt(2)
+    recorder.stop(signal.SIGKILL)
+    assert learner.wait(300) == 0, learner.log()  # the run does not need its recorder once started
+    assert learner.attempts_done() >= 5
+    sim.stop()
+    assert not bag_is_complete(g.bag)
+    recovered = subprocess.run(
+        [*console_script("g2p-recover-bag"), str(g.bag)], capture_output=True, text=True, timeout=120
+    )
+    assert recovered.returncode == 0, recovered.stderr
+    run = load_run(g.bag)
+    assert run.babbling_segments and attempt_ends(run)[:1] == [1]
+    assert json.loads(json.dumps(run.configs))  # the configurations survived
