@@ -100,13 +100,19 @@ class _Job:
 
 @dataclass(frozen=True)
 class _Outgoing:
-    """A tick for the publisher thread; `then` is called once it is published (or cannot be)."""
+    """A tick for the publisher thread; `then` is called once it is published (or cannot be).
 
-    sample: TickSample
+    Without a sample, only the last tick's time goes out again on /clock.
+    """
+
+    sample: TickSample | None
     clock: bool
     then: Callable[[], None] | None = None
 
 
+# An idle fast simulation repeats its /clock this often (wall s): a node started while it idles (a
+# learner resuming a run) gets the time, rather than 0, before the next sequence.
+IDLE_CLOCK_PERIOD_S = 1.0
 # Ticks the loop may run ahead of the publisher before it waits (3 s of rig time at 78 Hz).
 _OUTBOX_TICKS = 256
 
@@ -168,6 +174,7 @@ class RigServer:
         self._wall_start = 0.0
         self._burst: tuple[float, float] | None = None  # (wall, plant time) when on-demand ticking resumed
         self._last_log = {"rejected": 0.0, "ignored": 0.0}
+        self._last_clock_ns: int | None = None  # the stamp of the last tick published (publisher thread)
 
         qos = contract.SAMPLE_QOS
         self._pub_joints = node.create_publisher(JointState, contract.JOINT_STATES, qos)
@@ -376,7 +383,8 @@ class RigServer:
             with self._cv:
                 while self._running and self._pacing is Pacing.ON_DEMAND and not self._has_work():
                     self._burst = None
-                    self._cv.wait()
+                    if not self._cv.wait(IDLE_CLOCK_PERIOD_S):
+                        self._outbox.put(_Outgoing(None, True))  # the clock, for nodes started since
                 if not self._running:
                     return
                 reset, self._reset = self._reset, None
@@ -488,6 +496,9 @@ class RigServer:
         while (item := self._outbox.get()) is not None:
             if not dead:
                 try:
+                    if item.sample is None:
+                        self._publish_clock()
+                        continue
                     self._publish(item.sample, item.clock)
                 except Exception as err:
                     dead = not self._node.context.ok()
@@ -496,8 +507,13 @@ class RigServer:
             if item.then is not None:
                 item.then()
 
+    def _publish_clock(self) -> None:
+        if self._pub_clock is not None and self._last_clock_ns is not None:
+            self._pub_clock.publish(Clock(clock=time_from_ns(self._last_clock_ns)))
+
     def _publish(self, sample: TickSample, clock: bool = True) -> None:
         ns = stamp_ns(self._stamp(sample.t_s))
+        self._last_clock_ns = ns
         joints, treadmill, power, applied = self._serializer.serialize(sample, ns)
         if self._pub_clock is not None and clock:
             self._pub_clock.publish(Clock(clock=time_from_ns(ns)))
