@@ -9,9 +9,11 @@ ROS_SUITES := tests/interfaces tests/nodes tests/system
 run:
 	scripts/with-env scripts/ros2-run g2p_bringup bringup $(ARGS)
 
-# Lint, then every test on ROS 2 Kilted (core, simulator, hardware on fake buses, bags, nodes, and the
-# whole graph in real processes), then the interface, node and system tests on ROS 2 Jazzy.
+# Lint, then every test on ROS 2 Kilted (core, simulator, hardware on fake buses, bags, nodes, the whole
+# graph in real processes, and on two hosts with the rig on Jazzy), then the interface, node and system
+# tests on ROS 2 Jazzy.
 test: lint
+	G2P_ROS_DISTRO=jazzy scripts/bootstrap  # the two-host tests run the rig side on Jazzy
 	scripts/with-env python -m pytest tests
 	G2P_ROS_DISTRO=jazzy scripts/with-env python -m pytest $(ROS_SUITES)
 
