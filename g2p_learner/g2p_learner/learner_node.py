@@ -39,7 +39,7 @@ from g2p.experiments import (
     random_features,
     treadmill_result,
 )
-from g2p.inverse_map import FitReport
+from g2p.inverse_map import FitCancelled, FitReport
 from g2p.learner import Learner, LearnerConfig
 from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig, check_features
 from g2p.plant import Recording
@@ -357,7 +357,7 @@ class LearnerNode(Node):
                     )
                 self._adopt_recorder_run()
                 return execute(goal_handle)
-            except RigCancelled as err:
+            except (RigCancelled, FitCancelled) as err:
                 goal_handle.canceled()
                 return action.Result(message=f"cancelled: {err}")
             except RigUnreachable as err:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import enum
 import math
 import os
+import threading
 import time
 import zipfile
 from collections.abc import Mapping
@@ -227,6 +228,13 @@ class _Scaling:
         return data * self.scale + self.offset
 
 
+class FitCancelled(RuntimeError):
+    """A fit or refinement was cancelled (Ctrl-C, a goal's cancel); the map is as it was before it.
+
+    Its random generator has moved on: a run cancelled here continues from its last checkpoint.
+    """
+
+
 class InverseMap:
     """Kinematics (N, 6) -> activations (N, 3), fitted on babbling and refined on every attempt.
 
@@ -254,28 +262,43 @@ class InverseMap:
         """Which of the samples trained on so far are held out, shape (N,) (a copy); None before training."""
         return None if self._is_validation is None else self._is_validation.copy()
 
-    def fit(self, x: ArrayLike, y: ArrayLike, rng: np.random.Generator) -> FitReport:
+    def fit(
+        self, x: ArrayLike, y: ArrayLike, rng: np.random.Generator, cancel: threading.Event | None = None
+    ) -> FitReport:
         """Initial fit from fresh random weights; fixes the normalization for all later refinements.
 
         Args:
             x: kinematics, shape (N, 6) (rad, rad/s, rad/s^2), finite.
             y: activations that produced them, shape (N, 3), finite.
             rng: source of the weight initialization, the validation split and minibatch order.
+            cancel: when set, the fit stops with FitCancelled and the map is left as it was.
 
         Returns:
             What the fit did (also kept in `last_report`).
 
         Raises:
             InverseMapError: wrong shapes, non-finite values or too few samples.
+            FitCancelled: `cancel` was set.
         """
         xa, ya = _check_data(x, y, self.config)
+        before = (self._params, self._x, self._y, self._is_validation)
         self._x = _Scaling.of(xa, self.config.normalization)
         self._y = _Scaling.of(ya, self.config.normalization)
         self._params = _init_params(self.config.n_hidden, rng)
         self._is_validation = None
-        return self._train(xa, ya, rng, self.config.max_iterations_fit)
+        try:
+            return self._train(xa, ya, rng, self.config.max_iterations_fit, cancel)
+        except FitCancelled:
+            self._params, self._x, self._y, self._is_validation = before
+            raise
 
-    def refine(self, x_all: ArrayLike, y_all: ArrayLike, rng: np.random.Generator) -> FitReport:
+    def refine(
+        self,
+        x_all: ArrayLike,
+        y_all: ArrayLike,
+        rng: np.random.Generator,
+        cancel: threading.Event | None = None,
+    ) -> FitReport:
         """Continue training from the current weights on all data so far (babbling + every attempt).
 
         The normalization of the initial fit is kept, and so is each sample's side of the train/validation
@@ -288,12 +311,14 @@ class InverseMap:
             x_all: kinematics, shape (N, 6), finite; N at least the number of samples of the previous call.
             y_all: activations, shape (N, 3), finite.
             rng: source of the validation split and minibatch order.
+            cancel: when set, the refinement stops with FitCancelled and the map is left as it was.
 
         Returns:
             What the refinement did (also kept in `last_report`).
 
         Raises:
             InverseMapError: not fitted yet, wrong shapes, non-finite values, or fewer samples than before.
+            FitCancelled: `cancel` was set.
         """
         self._require_fitted()
         xa, ya = _check_data(x_all, y_all, self.config)
@@ -301,7 +326,12 @@ class InverseMap:
             raise InverseMapError(
                 f"x_all: refine needs all data so far, got {len(xa)} samples after {len(self._is_validation)}"
             )
-        return self._train(xa, ya, rng, self.config.max_iterations_refine)
+        before = self._is_validation
+        try:
+            return self._train(xa, ya, rng, self.config.max_iterations_refine, cancel)
+        except FitCancelled:
+            self._is_validation = before
+            raise
 
     def predict(self, x: ArrayLike) -> FloatArray:
         """Activations for kinematics, clipped to [activation_low, activation_high].
@@ -467,7 +497,12 @@ class InverseMap:
         return self._params, self._x, self._y
 
     def _train(
-        self, x: FloatArray, y: FloatArray, rng: np.random.Generator, max_iterations: int
+        self,
+        x: FloatArray,
+        y: FloatArray,
+        rng: np.random.Generator,
+        max_iterations: int,
+        cancel: threading.Event | None,
     ) -> FitReport:
         from g2p.inverse_map_training import train  # torch: see the module docstring
 
@@ -478,7 +513,16 @@ class InverseMap:
         xn, yn = xs.forward(x), ys.forward(y)
         start = time.perf_counter()
         result = train(
-            params, xn[train_rows], yn[train_rows], xn[val], yn[val], ys.scale, cfg, max_iterations, rng
+            params,
+            xn[train_rows],
+            yn[train_rows],
+            xn[val],
+            yn[val],
+            ys.scale,
+            cfg,
+            max_iterations,
+            rng,
+            cancel,
         )
         self._params = result.params
         self.last_report = FitReport(

@@ -6,6 +6,7 @@ prediction and files) does not import torch (about a second).
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -14,7 +15,7 @@ import numpy as np
 import torch
 from numpy.typing import NDArray
 
-from g2p.inverse_map import N_INPUTS, N_OUTPUTS, InverseMapConfig, Optimizer, StopReason
+from g2p.inverse_map import N_INPUTS, N_OUTPUTS, FitCancelled, InverseMapConfig, Optimizer, StopReason
 
 FloatArray = NDArray[np.float64]
 
@@ -50,6 +51,7 @@ def train(
     cfg: InverseMapConfig,
     max_iterations: int,
     rng: np.random.Generator,
+    cancel: threading.Event | None = None,
 ) -> TrainResult:
     """Train from `params` on normalized data, keeping the weights of the best validation error.
 
@@ -63,12 +65,16 @@ def train(
         cfg: optimizer, patience and threads.
         max_iterations: iteration budget.
         rng: source of minibatch order (Adam).
+        cancel: when set, training stops at the next iteration with FitCancelled.
+
+    Raises:
+        FitCancelled: `cancel` was set.
     """
     split = _Split(*(torch.from_numpy(a) for a in (x_train, y_train, x_val, y_val)))
     trainer = {Optimizer.LM: _train_lm, Optimizer.LBFGS: _train_lbfgs, Optimizer.ADAM: _train_adam}
     with _threads(cfg.num_threads):
         theta, iterations, best_iteration, reason = trainer[cfg.optimizer](
-            _flatten([torch.from_numpy(p) for p in params]), split, cfg, max_iterations, rng
+            _flatten([torch.from_numpy(p) for p in params]), split, cfg, max_iterations, rng, cancel
         )
     out_scale = torch.from_numpy(y_scale)
     with torch.no_grad():
@@ -129,8 +135,15 @@ class _Split:
 class _EarlyStopping:
     """Keeps the parameters of the best validation error; says when `patience` checks brought none better."""
 
-    def __init__(self, theta: torch.Tensor, split: _Split, n_hidden: int, patience: int) -> None:
-        self.split, self.n_hidden, self.patience = split, n_hidden, patience
+    def __init__(
+        self,
+        theta: torch.Tensor,
+        split: _Split,
+        n_hidden: int,
+        patience: int,
+        cancel: threading.Event | None = None,
+    ) -> None:
+        self.split, self.n_hidden, self.patience, self.cancel = split, n_hidden, patience, cancel
         self.best_theta = theta.detach().clone()
         self.best_error = self.error(theta)
         self.best_iteration = 0
@@ -142,6 +155,9 @@ class _EarlyStopping:
             return float(torch.mean((out - self.split.y_val) ** 2))
 
     def should_stop(self, theta: torch.Tensor, iteration: int) -> bool:
+        """After each iteration: whether to stop early; FitCancelled when a cancel was requested."""
+        if self.cancel is not None and self.cancel.is_set():
+            raise FitCancelled(f"fit cancelled after {iteration} iterations")
         err = self.error(theta)
         if err < self.best_error:
             self.best_theta, self.best_error = theta.detach().clone(), err
@@ -152,12 +168,17 @@ class _EarlyStopping:
 
 
 def _train_lm(
-    theta: torch.Tensor, split: _Split, cfg: InverseMapConfig, max_iterations: int, rng: np.random.Generator
+    theta: torch.Tensor,
+    split: _Split,
+    cfg: InverseMapConfig,
+    max_iterations: int,
+    rng: np.random.Generator,
+    cancel: threading.Event | None = None,
 ) -> tuple[torch.Tensor, int, int, StopReason]:
     """Levenberg-Marquardt with MATLAB trainlm's damping schedule and an analytic Gauss-Newton matrix."""
     del rng  # full batch, deterministic
     h, x, y = cfg.n_hidden, split.x_train, split.y_train
-    stopper = _EarlyStopping(theta, split, h, cfg.patience)
+    stopper = _EarlyStopping(theta, split, h, cfg.patience, cancel)
     mu = cfg.lm_mu
     eye = torch.eye(theta.numel(), dtype=torch.float64)
     hid, res = _hidden_and_residual(theta, h, x, y)
@@ -224,12 +245,17 @@ def _gauss_newton(
 
 
 def _train_lbfgs(
-    theta: torch.Tensor, split: _Split, cfg: InverseMapConfig, max_iterations: int, rng: np.random.Generator
+    theta: torch.Tensor,
+    split: _Split,
+    cfg: InverseMapConfig,
+    max_iterations: int,
+    rng: np.random.Generator,
+    cancel: threading.Event | None = None,
 ) -> tuple[torch.Tensor, int, int, StopReason]:
     """Full-batch L-BFGS, one iteration per validation check."""
     del rng  # full batch, deterministic
     h = cfg.n_hidden
-    stopper = _EarlyStopping(theta, split, h, cfg.patience)
+    stopper = _EarlyStopping(theta, split, h, cfg.patience, cancel)
     param = theta.detach().clone().requires_grad_(True)
     opt = torch.optim.LBFGS(
         [param],
@@ -261,11 +287,16 @@ def _train_lbfgs(
 
 
 def _train_adam(
-    theta: torch.Tensor, split: _Split, cfg: InverseMapConfig, max_iterations: int, rng: np.random.Generator
+    theta: torch.Tensor,
+    split: _Split,
+    cfg: InverseMapConfig,
+    max_iterations: int,
+    rng: np.random.Generator,
+    cancel: threading.Event | None = None,
 ) -> tuple[torch.Tensor, int, int, StopReason]:
     """Adam on minibatches shuffled by `rng`, one epoch per validation check."""
     h = cfg.n_hidden
-    stopper = _EarlyStopping(theta, split, h, cfg.patience)
+    stopper = _EarlyStopping(theta, split, h, cfg.patience, cancel)
     param = theta.detach().clone().requires_grad_(True)
     opt = torch.optim.Adam([param], lr=cfg.adam_learning_rate)
     n, bs = len(split.x_train), cfg.adam_batch_size

@@ -15,7 +15,7 @@ import numpy as np
 from g2p.attempt import AttemptOutcome, run_attempt
 from g2p.babbling import BabblingConfig, babbling_activations
 from g2p.config import require_positive
-from g2p.inverse_map import FitReport, InverseMap, InverseMapConfig
+from g2p.inverse_map import FitCancelled, FitReport, InverseMap, InverseMapConfig
 from g2p.kinematics import PreprocessConfig, TrainingPairs, recording_pairs
 from g2p.limit_cycle import LimitCycleConfig
 from g2p.plant import Recording, concatenate
@@ -134,12 +134,16 @@ class Learner:
             recordings.append(rig.play(activations[start : start + chunk], chunk_progress, cancel))
         if progress is not None:
             progress(n, n)
-        return self.fit_babbling(recordings)
+        return self.fit_babbling(recordings, cancel)
 
-    def fit_babbling(self, recordings: list[Recording]) -> FitReport:
-        """Replace the dataset by babbling recordings (each a contiguous segment) and fit the map afresh."""
+    def fit_babbling(self, recordings: list[Recording], cancel: threading.Event | None = None) -> FitReport:
+        """Replace the dataset by babbling recordings (each a contiguous segment) and fit the map afresh.
+
+        Raises:
+            FitCancelled: `cancel` was set during the fit (the data is kept, the map is not fitted).
+        """
         self.load_data(recordings, [])
-        return self.inverse_map.fit(*self.dataset.arrays(), self._map_rng)
+        return self.inverse_map.fit(*self.dataset.arrays(), self._map_rng, cancel)
 
     def load_data(self, babbling: Sequence[Recording], attempts: Sequence[tuple[str, Recording]]) -> None:
         """Rebuild the dataset as `fit_babbling` then `refine_with` build it, without fitting anything.
@@ -175,14 +179,25 @@ class Learner:
         """
         outcome = run_attempt(rig, self.inverse_map, features, cycle, self.lead_ticks, progress, cancel)
         return outcome, (
-            self.refine_with(outcome.recording, f"attempt {self.refinements + 1}") if refine else None
+            self.refine_with(outcome.recording, f"attempt {self.refinements + 1}", cancel) if refine else None
         )
 
-    def refine_with(self, recording: Recording, label: str) -> FitReport:
-        """Add an attempt's data (without its transition from rest) and refine the map on all data."""
+    def refine_with(
+        self, recording: Recording, label: str, cancel: threading.Event | None = None
+    ) -> FitReport:
+        """Add an attempt's data (without its transition from rest) and refine the map on all data.
+
+        Raises:
+            FitCancelled: `cancel` was set during the refinement; the data and the map are as before.
+        """
         self.dataset.add(label, self._attempt_pairs(recording))
+        try:
+            report = self.inverse_map.refine(*self.dataset.arrays(), self._map_rng, cancel)
+        except FitCancelled:
+            self.dataset.segments.pop()
+            raise
         self.refinements += 1
-        return self.inverse_map.refine(*self.dataset.arrays(), self._map_rng)
+        return report
 
     def _attempt_pairs(self, recording: Recording) -> TrainingPairs:
         return recording_pairs(recording, self.config.preprocess, self.config.preprocess.transition_fraction)

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import threading
+import time
 import zipfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -308,3 +311,32 @@ def test_zscore_normalization_fits_too() -> None:
     arrays = net.to_arrays()
     np.testing.assert_allclose(arrays["x_offset"], x.mean(axis=0))
     np.testing.assert_allclose(arrays["x_scale"], x.std(axis=0))
+
+
+@pytest.mark.parametrize("optimizer", list(Optimizer))
+def test_a_cancelled_fit_or_refinement_stops_at_once_and_leaves_the_map_as_it_was(
+    optimizer: Optimizer,
+) -> None:
+    rng = np.random.default_rng(0)
+    x = sample(rng, 4000)
+    y = known_map(x)
+    net = InverseMap(replace(CFG, optimizer=optimizer, max_iterations_fit=10**6, patience=10**6))
+    cancel = threading.Event()
+    cancel.set()
+    with pytest.raises(im.FitCancelled):
+        net.fit(x, y, rng, cancel)
+    assert not net.is_fitted  # as before the fit
+    net = InverseMap(replace(CFG, optimizer=optimizer))
+    net.fit(x, y, rng)
+    before, mask = net.to_arrays(), net.validation_mask
+    cancel = threading.Event()
+    endless = replace(CFG, optimizer=optimizer, max_iterations_refine=10**6, patience=10**6)
+    long_net = InverseMap.from_arrays(before, endless, validation_mask=mask)
+    threading.Timer(0.3, cancel.set).start()
+    start = time.monotonic()
+    with pytest.raises(im.FitCancelled):
+        long_net.refine(np.concatenate([x, x]), np.concatenate([y, y]), rng, cancel)
+    assert time.monotonic() - start < 0.3 + 1.0  # within a second of the cancel
+    for name, array in before.items():
+        np.testing.assert_array_equal(long_net.to_arrays()[name], array)
+    np.testing.assert_array_equal(long_net.validation_mask, mask)
