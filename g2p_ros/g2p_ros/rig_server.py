@@ -66,6 +66,10 @@ class RigServerConfig:
         clock_period_ticks: ticks between /clock messages (when the rig publishes /clock); the last tick
             before the rig idles and every reset are always published, so the clock is never behind a
             finished sequence. Every /clock message costs each use_sim_time node an executor callback.
+        command_max_age_s: an activation_cmd stamped longer ago than this, on the rig's clock, is ignored
+            (s; 0 = no check; an unstamped command is not checked): a command held up by a network fault
+            must not move the motors when it finally arrives. Across hosts, their clocks must agree to well
+            within this (chrony; docs/DEPLOYMENT.md).
         flush_timeout_s: on stopping, how long to wait for every subscriber (the recorder) to acknowledge
             the ticks already published before the publishers are destroyed (s). A reliable sample lost
             on the way is resent only while its publisher exists.
@@ -78,6 +82,7 @@ class RigServerConfig:
     log_period_s: float = 1.0
     fast_max_real_time_factor: float = 60.0
     clock_period_ticks: int = 1
+    command_max_age_s: float = 0.5
     flush_timeout_s: float = 5.0
 
     def __post_init__(self) -> None:
@@ -85,6 +90,9 @@ class RigServerConfig:
             self.clock_period_ticks >= 1, "clock_period_ticks", f"must be >= 1, got {self.clock_period_ticks}"
         )
         require(self.flush_timeout_s >= 0, "flush_timeout_s", f"must be >= 0, got {self.flush_timeout_s}")
+        require(
+            self.command_max_age_s >= 0, "command_max_age_s", f"must be >= 0, got {self.command_max_age_s}"
+        )
 
 
 @dataclass
@@ -173,7 +181,8 @@ class RigServer:
         self._stamp_offset_s = 0.0
         self._wall_start = 0.0
         self._burst: tuple[float, float] | None = None  # (wall, plant time) when on-demand ticking resumed
-        self._last_log = {"rejected": 0.0, "ignored": 0.0}
+        self._last_log = {"rejected": 0.0, "ignored": 0.0, "stale": 0.0}
+        self._stale_commands = 0
         self._last_clock_ns: int | None = None  # the stamp of the last tick published (publisher thread)
 
         qos = contract.SAMPLE_QOS
@@ -281,6 +290,16 @@ class RigServer:
     # Executor callbacks: validate, hand over to the loop, wait ----------------------------------------
 
     def _on_command(self, msg: MotorActivation) -> None:
+        age_s = self._command_age_s(msg.header.stamp)
+        if age_s is not None and 0 < self._config.command_max_age_s < age_s:
+            self._stale_commands += 1
+            self._warn(
+                "stale",
+                f"activation_cmd ignored: stamped {age_s:.2f} s ago, older than rig.command_max_age_s "
+                f"({self._config.command_max_age_s:g} s): late after a network fault, or the hosts' clocks "
+                f"disagree ({self._stale_commands} so far)",
+            )
+            return
         with self._cv:
             if self._job is not None:
                 self._ignored_commands += 1
@@ -301,6 +320,14 @@ class RigServer:
             if self._pacing is Pacing.ON_DEMAND:
                 self._lockstep.append(applied)
                 self._cv.notify_all()
+
+    def _command_age_s(self, stamp: Time) -> float | None:
+        """How long ago a command was stamped on the rig's clock (s); None when unstamped or unknown."""
+        stamp_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+        now_ns = self._last_clock_ns if self._sim_time else time.time_ns()
+        if stamp_ns == 0 or now_ns is None:
+            return None
+        return (now_ns - stamp_ns) * 1e-9
 
     def _on_goal(self, goal: RunActivations.Goal) -> GoalResponse:
         n = len(goal.activation)
@@ -533,6 +560,7 @@ class RigServer:
             "commands_clamped": c.clamped,
             "commands_rejected": c.rejected,
             "commands_ignored_during_sequence": self._ignored_commands,
+            "commands_stale": self._stale_commands,
             "watchdog_trips": c.watchdog_trips,
             "plant_faults": self._faults,
         }
@@ -553,12 +581,13 @@ class RigServer:
 
     @property
     def counters(self) -> dict[str, int]:
-        """Command counters since start (accepted, clamped, rejected, ignored, watchdog trips)."""
+        """Command counters since start (accepted, clamped, rejected, ignored, stale, watchdog trips)."""
         c = self._gate.counters
         return {
             "accepted": c.accepted,
             "clamped": c.clamped,
             "rejected": c.rejected,
             "ignored": self._ignored_commands,
+            "stale": self._stale_commands,
             "watchdog_trips": c.watchdog_trips,
         }

@@ -281,6 +281,24 @@ def test_bad_commands_never_reach_the_physics_and_are_counted(fast_sim: NodeProc
     )  # outside [0, 1]; sub-baseline is normal
 
 
+def test_a_stale_command_is_ignored_and_a_fresh_one_applied(fast_sim: NodeProcess, peer: RigPeer) -> None:
+    """A command stamped 2 s before the rig's time (held up by a network fault) never reaches the physics."""
+    peer.wait_for_rig()
+    samples = peer.wait(peer.play(np.full((300, 3), 0.2)).get_result_async(), 30.0).result.samples
+    now_ns = int(samples.stamp_ns[-1])  # the rig's time: sim time, 3.8 s after its start
+    wait_until(lambda: len(peer.applied()) >= 300, 10.0, "the sequence's ticks")
+    time.sleep(0.3)
+    before = len(peer.applied())
+    for age_ns, activation in ((2_000_000_000, [0.9, 0.9, 0.9]), (0, [0.3, 0.4, 0.5])):
+        header = MotorActivation().header
+        header.stamp.sec, header.stamp.nanosec = divmod(now_ns - age_ns, 1_000_000_000)
+        peer.cmd.publish(MotorActivation(header=header, activation=activation))
+    wait_until(lambda: len(peer.applied()) > before, 10.0, "the fresh command's tick")
+    time.sleep(0.5)  # a (wrong) tick of the stale command would arrive within this
+    assert peer.applied()[before:] == [[0.3, 0.4, 0.5]]
+    assert "activation_cmd ignored: stamped 2.00 s ago" in fast_sim.log()
+
+
 def test_reset_returns_to_rest(fast_sim: NodeProcess, peer: RigPeer) -> None:
     peer.wait_for_rig()
     first = peer.wait(peer.play(np.full((5, 3), BASELINE)).get_result_async(), 30.0).result.samples

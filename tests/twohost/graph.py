@@ -159,7 +159,7 @@ def _outside_environment() -> dict[str, str]:
     other distribution's from scratch: its libraries must not be shadowed by this one's)."""
     venv = os.environ.get("VIRTUAL_ENV", "")
     keep = {k: v for k, v in os.environ.items() if k in ("HOME", "LANG", "LC_ALL", "TERM", "TMPDIR")}
-    keep["ROS_DOMAIN_ID"] = os.environ["ROS_DOMAIN_ID"]
+    keep["ROS_DOMAIN_ID"] = os.environ.get("ROS_DOMAIN_ID", "0")  # the namespaces keep it to themselves
     keep["PATH"] = os.pathsep.join(
         p for p in os.environ.get("PATH", "").split(os.pathsep) if p and not (venv and p.startswith(venv))
     )
