@@ -1,6 +1,7 @@
 """The graph on two hosts over a bad network: what each fault costs, a soak, and the main job's wall time.
 
-    scripts/with-env python benchmarks/bench_two_hosts.py [faults] [soak] [walltime] [--soak-rig-min 60]
+    scripts/with-env python benchmarks/bench_two_hosts.py [faults] [placement] [rediscovery] [walltime] [soak]
+        [--soak-rig-min 60]
 
 Runs on the two-host bench of the test suite (tests/twohost: two network namespaces joined by a
 user-space link with delay, loss and partitions; needs root). The rig side runs ROS 2 Jazzy with the
@@ -13,6 +14,10 @@ executable.
   link with 20 ms +- 10 ms one-way delay and 2 % loss. For each: time to detect the fault (the learner's
   rig_lost event), time until the rig applies baseline, attempts retried, rig samples lost (published by
   the rig, not in the bag) and the run's extra wall time against the same run on a clean link.
+- placement: rig samples lost by the recorder beside the rig and by one on the workstation, over a 30 s
+  partition (longer than the 20 s DDS keeps a silent peer).
+- rediscovery: after a 30 s partition, time from the link's return to the first message across it, with
+  multicast discovery (ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET) and with ROS_STATIC_PEERS.
 - soak: `--soak-rig-min` minutes of rig time (fast simulation) over the impaired link with a random 1-5 s
   partition every 20-40 s of wall time; attempts completed and retried, samples lost, each process's
   resident memory after babbling and at the end, processes restarted by hand (none).
@@ -56,6 +61,7 @@ REALTIME = {
     "search.exploitation_attempts": "3",
 }
 IMPAIRED = {"delay_ms": 20.0, "jitter_ms": 10.0, "loss": 0.02}
+PROBE = ROOT / "benchmarks" / "two_host_probe.py"
 
 
 def rss_mb(pid: int) -> float:
@@ -309,10 +315,84 @@ def walltime(workdir: Path) -> dict[str, float]:
     return out
 
 
+def _messages_after(listener: HostProcess, t: float) -> list[float]:
+    """When the listener received each message after wall time `t` (s)."""
+    received = [json.loads(x)["received"] for x in listener.log().splitlines() if x[:1] == "{"]
+    return [r for r in received if r > t]
+
+
+def _rediscovery_once(workdir: Path, name: str, partition_s: float) -> dict[str, Any]:
+    with TwoHostBench() as bench:
+        g = TwoHostGraph(bench, workdir / f"rediscovery-{name.replace(' ', '-')}", "probe")
+        peers = {"rig": bench.ws_ip, "ws": bench.rig_ip}
+        envs = {
+            h: {}
+            if name == "SUBNET"
+            else {"ROS_STATIC_PEERS": peers[h], "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+            for h in peers
+        }
+        talker = g.python("rig", PROBE, "talk", extra_env=envs["rig"])
+        listener = g.python("ws", PROBE, "listen", extra_env=envs["ws"])
+        listener.wait_for("the first message", 120.0, lambda: bool(_messages_after(listener, 0.0)))
+        bench.partition()
+        time.sleep(partition_s)
+        healed = time.time()
+        bench.restore()
+        listener.wait_for(
+            "a message after the partition", 120.0, lambda: bool(_messages_after(listener, healed))
+        )
+        first = min(_messages_after(listener, healed))
+        talker.stop()
+        listener.stop()
+    return {"discovery": name, "partition_s": partition_s, "first_message_after_s": round(first - healed, 2)}
+
+
+def rediscovery(workdir: Path, partition_s: float = 30.0) -> list[dict[str, Any]]:
+    """Time from the link's return to the first message across it, after a long partition.
+
+    The partition is longer than DDS keeps a silent peer (20 s); multicast discovery (SUBNET) against
+    ROS_STATIC_PEERS.
+    """
+    return [_rediscovery_once(workdir, name, partition_s) for name in ("SUBNET", "static peers")]
+
+
+def _placement_once(workdir: Path, where: Any, partition_s: float) -> dict[str, Any]:
+    with TwoHostBench() as bench:
+        g = TwoHostGraph(bench, workdir / f"recorder-{where}", f"recorder-{where}")
+        sim = g.node("rig", "g2p_sim", "sim", *NS, "-p", "time_mode:=realtime")
+        recorder = g.node(where, "g2p_recorder", "record", *NS, "-p", f"run_id:={g.run_id}")
+        recorder.wait_for("recording the rig", 120.0, lambda: "/leg/joint_states" in recorder.log())
+        time.sleep(5.0)
+        bench.partition()
+        time.sleep(partition_s)
+        bench.restore()
+        time.sleep(10.0)
+        sim.stop()
+        recorder.stop()
+        run = load_run(g.bag)
+    return {
+        "recorder_on": "rig host" if where == "rig" else "workstation",
+        "partition_s": partition_s,
+        "published": published(sim.log()),
+        "recorded": len(run.ticks.recording),
+    }
+
+
+def recorder_placement(workdir: Path, partition_s: float = 30.0) -> list[dict[str, Any]]:
+    """Rig samples lost by a recorder beside the rig and by one on the workstation, over a long partition.
+
+    The partition is longer than DDS keeps a silent peer (20 s); the rig, paced in real time, idles at
+    baseline meanwhile.
+    """
+    return [_placement_once(workdir, where, partition_s) for where in ("rig", "ws")]
+
+
 def main() -> None:
     """Run the chosen parts and print their figures (JSON)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("parts", nargs="*", default=["faults", "soak", "walltime"])
+    parser.add_argument(
+        "parts", nargs="*", default=["faults", "placement", "rediscovery", "walltime", "soak"]
+    )
     parser.add_argument("--soak-rig-min", type=float, default=60.0, help="rig time of the soak (min)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="g2p-two-hosts-") as tmp:
@@ -321,6 +401,12 @@ def main() -> None:
         if "faults" in args.parts:
             report["faults"] = faults(work)
             print(json.dumps(report["faults"], indent=1), flush=True)
+        if "placement" in args.parts:
+            report["placement"] = recorder_placement(work)
+            print(json.dumps(report["placement"], indent=1), flush=True)
+        if "rediscovery" in args.parts:
+            report["rediscovery"] = rediscovery(work)
+            print(json.dumps(report["rediscovery"], indent=1), flush=True)
         if "walltime" in args.parts:
             report["walltime"] = walltime(work)
             print(json.dumps(report["walltime"], indent=1), flush=True)

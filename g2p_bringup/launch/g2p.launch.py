@@ -1,13 +1,17 @@
 """Launch the G2P graph on a full ROS 2 install, from the same description as `ros2 run g2p_bringup bringup`.
 
     ros2 launch g2p_bringup g2p.launch.py rig:=sim run_id:=my-run bags_dir:=bags
+    ros2 launch g2p_bringup g2p.launch.py host:=rig dds_interface:=eth0 rig:=hardware     # on the Pi
+    ros2 launch g2p_bringup g2p.launch.py host:=workstation dds_interface:=wlan0 rig:=hardware
 
 Every node of config/graph.yaml starts with its parameters and remappings, all at once as `bringup` starts
-them; the learner begins only once the recorder hears the rig (its `recorder_node` parameter). Unlike
-`bringup`, launch does not write the report; run `g2p-report bags/<run_id>` after.
+them; the learner begins only once the recorder hears the rig (its `recorder_node` parameter). With
+`host`, only that host's nodes start, with the two-host DDS profile for `dds_interface` (as `bringup
+--host`). Unlike `bringup`, launch does not write the report; run `g2p-report bags/<run_id>` after.
 """
 
 import os
+import tempfile
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -19,7 +23,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from g2p.bags.runs import new_run_id
-from g2p_bringup.dds import profile_environment
+from g2p_bringup.dds import interface_address, profile_environment, two_host_environment
 from g2p_bringup.graph import load_graph
 
 
@@ -28,11 +32,20 @@ def _nodes(context, *args, **kwargs):
     run_id = LaunchConfiguration("run_id").perform(context) or new_run_id(
         datetime.now(timezone.utc), np.random.default_rng()
     )
+    host = LaunchConfiguration("host").perform(context) or None
     graph = load_graph(
         Path(graph_file),
         LaunchConfiguration("rig").perform(context) or None,
         {"run_id": run_id, "bags_dir": LaunchConfiguration("bags_dir").perform(context)},
+        host=host,
     )
+    env = None
+    if host is not None:
+        interface = LaunchConfiguration("dds_interface").perform(context)
+        if not interface:
+            raise RuntimeError("host:=... needs dds_interface:=<the interface joining the two hosts>")
+        profile_dir = Path(tempfile.mkdtemp(prefix="g2p-launch-"))
+        env = two_host_environment(dict(os.environ), interface_address(interface), profile_dir)
     return [
         Node(
             package=spec.package,
@@ -43,6 +56,7 @@ def _nodes(context, *args, **kwargs):
             remappings=list(spec.remappings.items()),
             arguments=list(spec.arguments),
             output="screen",
+            env=env,
             on_exit=Shutdown() if spec is graph.main else None,
         )
         for spec in graph.nodes
@@ -67,6 +81,14 @@ def generate_launch_description():
                 "run_id", default_value="", description="run id (default: UTC time + suffix)"
             ),
             DeclareLaunchArgument("bags_dir", default_value="bags", description="directory of recorded runs"),
+            DeclareLaunchArgument(
+                "host",
+                default_value="",
+                description="rig or workstation: that host's part only (default: all)",
+            ),
+            DeclareLaunchArgument(
+                "dds_interface", default_value="", description="with host: the interface DDS may use"
+            ),
             OpaqueFunction(function=_nodes),
         ]
     )

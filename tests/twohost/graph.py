@@ -93,6 +93,7 @@ class TwoHostGraph:
     def __init__(self, bench: TwoHostBench, workdir: Path, run_id: str) -> None:
         self.bench = bench
         self.workdir = workdir
+        workdir.mkdir(parents=True, exist_ok=True)
         self.run_id = run_id
         self.bag = workdir / "bags" / run_id
         self._n = 0
@@ -130,6 +131,25 @@ class TwoHostGraph:
         # scripts/with-env keeps one host on loopback; the nodes of a two-host graph use the link.
         argv = [argv[0], "env", "ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET", *argv[1:]]
         return self._start(host, executable, argv, env)
+
+    def python(
+        self, host: Host, script: Path, *args: str, extra_env: dict[str, str] | None = None
+    ) -> HostProcess:
+        """A Python script on `host` in its ROS environment, with the two-host DDS profile."""
+        env = _outside_environment()
+        env["G2P_ROS_DISTRO"] = RIG_DISTRO if host == "rig" else os.environ.get("G2P_ROS_DISTRO", "kilted")
+        env[_PROFILE_VARIABLE[env["G2P_ROS_DISTRO"]]] = str(self._profile(host, env))
+        env.update(extra_env or {})
+        discovery = env.pop("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET")
+        argv = [
+            str(ROOT / "scripts" / "with-env"),
+            "env",
+            f"ROS_AUTOMATIC_DISCOVERY_RANGE={discovery}",
+            "python",
+            str(script),
+            *args,
+        ]
+        return self._start(host, script.stem, argv, env)
 
     def _profile(self, host: Host, env: dict[str, str]) -> Path:
         """The two-host profile for `host`'s address, made by that host's distribution (the XML of Fast
