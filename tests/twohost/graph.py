@@ -39,7 +39,8 @@ class HostProcess:
 
     def log(self) -> str:
         """What the process printed so far."""
-        self._log.flush()
+        if not self._log.closed:
+            self._log.flush()
         return self.log_path.read_text(errors="replace")
 
     def attempts_done(self) -> int:
