@@ -90,11 +90,11 @@ class LearnerNodeConfig:
         air_feature_high: highest feature of the free-movement (track) trajectories (feature units; paper:
             0.8).
         rig_timeout_s: how long a goal waits for the rig's action and service (and the recorder) (s).
-        rig_silence_s: a sequence whose rig gives no word (goal acknowledgement, feedback) for this long
-            is abandoned as lost (s); the rig sends feedback every 0.2 s.
+        rig_silence_s: a playing sequence whose rig sends no feedback for this long is abandoned as lost
+            (s); the rig sends feedback every 0.2 s.
         rig_lost_limit_s: how long a run waits for a lost rig to answer again before it ends (s); the
             lost sequence is then played again from rest.
-        rig_reset_timeout_s: longest wait for the rig's reset (s).
+        rig_reset_timeout_s: longest wait for the rig's reset (s; at most rig_lost_limit_s).
         recorder_node: name of the recorder node in this namespace: every goal first waits until it
             subscribes to the rig's sample topics, so the recorded run is whole ("" = do not wait).
         learner: babbling, preprocessing and inverse-map settings.
@@ -180,7 +180,9 @@ class LearnerNode(Node):
             search=declare_config(self, SearchConfig, "search.", exclude=search_fields),
         )
         cfg = self.config
-        self.client = RigClient(self, cfg.rig_timeout_s, cfg.rig_silence_s, cfg.rig_reset_timeout_s)
+        # A reset waited for while the rig is lost must not outlast the limit (it blocks until answered).
+        reset_timeout_s = min(cfg.rig_reset_timeout_s, cfg.rig_lost_limit_s)
+        self.client = RigClient(self, cfg.rig_timeout_s, cfg.rig_silence_s, reset_timeout_s)
         self.rig = RetryingRig(self.client, cfg.rig_lost_limit_s, on_event=self._rig_event)
         self.watches = list(self.client.watches)
         self._recorder_config: dict[str, Any] | None = None
@@ -361,7 +363,7 @@ class LearnerNode(Node):
                 goal_handle.canceled()
                 return action.Result(message=f"cancelled: {err}")
             except RigUnreachable as err:
-                message = f"{err}; {self._resume_hint()}"
+                message = f"{err}; {self._resume_hint()}" if action is Learn else str(err)
                 self.get_logger().error(f"{action.__name__} goal aborted: {message}")
                 self._event("run_end", detail={"error": str(err), "resume": self.bag_path})
                 goal_handle.abort()
