@@ -174,7 +174,14 @@ def test_a_partition_longer_than_the_limit_ends_the_run_cleanly_with_how_to_resu
     bench: TwoHostBench, tmp_path: Path
 ) -> None:
     g = graph(bench, tmp_path)
-    rig_side, workstation = learn_two_hosts(g, "sim", {**RUN, "learner.rig_lost_limit_s": "4.0"})
+    # The workstation first: it waits for the rig's side and says so.
+    workstation = g.bringup(
+        "ws", "--rig", "sim", *set_args({**RUN, "learner.rig_lost_limit_s": "4.0"}, "learner")
+    )
+    workstation.wait_for(
+        "the learner's wait message", 120.0, lambda: "is the rig's side up?" in workstation.log()
+    )
+    rig_side = g.bringup("rig", "--rig", "sim")
     workstation.wait_for_attempt(1)
     bench.partition()
     code = workstation.wait(120)
