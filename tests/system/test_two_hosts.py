@@ -8,7 +8,6 @@ namespaces (UDPv4 on its TUN link only).
 
 from __future__ import annotations
 
-import json
 import signal
 import subprocess
 import time
@@ -80,6 +79,47 @@ def published_ticks(rig_log: str) -> int:
     return int(lines[-1].split("stopped after publishing ")[1].split()[0])
 
 
+NS = ["--ros-args", "-r", "__ns:=/leg"]
+
+
+def one_host_run(tmp_path: Path, run_id: str) -> RunData:
+    """The same run with the whole graph on one host (loopback), this session's distribution."""
+    done = subprocess.run(
+        [
+            str(executable("g2p_bringup", "bringup")),
+            "--run-id",
+            run_id,
+            "--no-report",
+            *set_args(RUN, "learner"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=tmp_path,
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
+    return load_run(tmp_path / "bags" / run_id)
+
+
+def rig_nodes(g: TwoHostGraph, *sim_params: str) -> tuple[HostProcess, HostProcess]:
+    """The simulator and the recorder on the rig host, one process each (to kill one of them)."""
+    sim = g.node("rig", "g2p_sim", "sim", *NS, *sim_params)
+    recorder = g.node("rig", "g2p_recorder", "record", *NS, "-p", f"run_id:={g.run_id}")
+    return sim, recorder
+
+
+def learner_args(settings: dict[str, str], sim_time: bool) -> list[str]:
+    """`learn`'s arguments: waiting for the recorder, with these parameters."""
+    return [
+        *NS,
+        "-p",
+        "recorder_node:=recorder",
+        "-p",
+        f"use_sim_time:={str(sim_time).lower()}",
+        *ros_params(settings),
+    ]
+
+
 def learn_two_hosts(g: TwoHostGraph, rig: str, settings: dict[str, str]) -> tuple[HostProcess, HostProcess]:
     """Start both sides with bringup: the rig host first, the workstation after."""
     rig_side = g.bringup("rig", "--rig", rig)
@@ -90,21 +130,7 @@ def learn_two_hosts(g: TwoHostGraph, rig: str, settings: dict[str, str]) -> tupl
 def test_a_seeded_run_over_an_impaired_link_equals_the_run_over_loopback(
     bench: TwoHostBench, tmp_path: Path
 ) -> None:
-    # Loopback: the whole graph on one host, this session's distribution.
-    local = subprocess.run(
-        [
-            str(executable("g2p_bringup", "bringup")),
-            "--run-id",
-            "loopback",
-            "--no-report",
-            *set_args(RUN, "learner"),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        cwd=tmp_path,
-    )
-    assert local.returncode == 0, local.stdout + local.stderr
+    here = one_host_run(tmp_path, "loopback")
     # Two hosts: 20 ms +- 10 ms one way and 2 % loss, both ways.
     bench.impair(delay_ms=20.0, jitter_ms=10.0, loss=0.02)
     g = graph(bench, tmp_path)
@@ -112,7 +138,7 @@ def test_a_seeded_run_over_an_impaired_link_equals_the_run_over_loopback(
     assert workstation.wait(600) == 0, workstation.log()
     assert rig_side.stop() in (0, 130), rig_side.log()
 
-    here, there = load_run(tmp_path / "bags" / "loopback"), load_run(g.bag)
+    there = load_run(g.bag)
     assert sorted(set(attempt_ends(there))) == list(range(1, 10))
     # Bit for bit: the rig owns the timing. Up to a sequence played again, if any (a goal whose answer
     # was lost, on a loaded machine even over loopback): the rig then played more ticks, its tick-timing
@@ -210,27 +236,13 @@ def test_a_rig_killed_and_restarted_mid_run_is_waited_for_and_the_run_completes(
     bench: TwoHostBench, tmp_path: Path
 ) -> None:
     g = graph(bench, tmp_path)
-    rig_args = ["--ros-args", "-r", "__ns:=/leg", "-p", "time_mode:=realtime"]
-    sim = g.node("rig", "g2p_sim", "sim", *rig_args)
-    recorder = g.node(
-        "rig", "g2p_recorder", "record", "--ros-args", "-r", "__ns:=/leg", "-p", f"run_id:={g.run_id}"
-    )
-    learner = g.node(
-        "ws",
-        "g2p_learner",
-        "learn",
-        "--ros-args",
-        "-r",
-        "__ns:=/leg",
-        "-p",
-        "recorder_node:=recorder",
-        *ros_params(REALTIME_RUN),
-    )
+    sim, recorder = rig_nodes(g, "-p", "time_mode:=realtime")
+    learner = g.node("ws", "g2p_learner", "learn", *learner_args(REALTIME_RUN, sim_time=False))
     learner.wait_for_attempt(1)
     time.sleep(1.0)
     sim.stop(signal.SIGKILL)
     time.sleep(1.0)
-    sim = g.node("rig", "g2p_sim", "sim", *rig_args)
+    sim = g.node("rig", "g2p_sim", "sim", *NS, "-p", "time_mode:=realtime")
     assert learner.wait(300) == 0, learner.log()
     assert "rig lost" in learner.log() and "rig back" in learner.log()
     sim.stop()
@@ -242,48 +254,11 @@ def test_a_rig_killed_and_restarted_mid_run_is_waited_for_and_the_run_completes(
 def test_a_learner_killed_during_exploitation_resumes_bit_for_bit_from_the_bag(
     bench: TwoHostBench, tmp_path: Path
 ) -> None:
-    # The uninterrupted run, for the answer.
-    reference = subprocess.run(
-        [
-            str(executable("g2p_bringup", "bringup")),
-            "--run-id",
-            "reference",
-            "--no-report",
-            *set_args(RUN, "learner"),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        cwd=tmp_path,
-    )
-    assert reference.returncode == 0, reference.stdout + reference.stderr
-    uninterrupted = load_run(tmp_path / "bags" / "reference")
-
+    uninterrupted = one_host_run(tmp_path, "reference")  # the answer
     g = graph(bench, tmp_path)
     # A fast rig slowed to 3x real time, so that the kill falls inside an attempt.
-    rig_args = [
-        "--ros-args",
-        "-r",
-        "__ns:=/leg",
-        "-p",
-        "time_mode:=fast",
-        "-p",
-        "rig.fast_max_real_time_factor:=3.0",
-    ]
-    sim = g.node("rig", "g2p_sim", "sim", *rig_args)
-    recorder = g.node(
-        "rig", "g2p_recorder", "record", "--ros-args", "-r", "__ns:=/leg", "-p", f"run_id:={g.run_id}"
-    )
-    learn_args = [
-        "--ros-args",
-        "-r",
-        "__ns:=/leg",
-        "-p",
-        "recorder_node:=recorder",
-        "-p",
-        "use_sim_time:=true",
-        *ros_params(RUN),
-    ]
+    sim, recorder = rig_nodes(g, "-p", "time_mode:=fast", "-p", "rig.fast_max_real_time_factor:=3.0")
+    learn_args = learner_args(RUN, sim_time=True)
     learner = g.node("ws", "g2p_learner", "learn", *learn_args)
     learner.wait_for_attempt(6)  # exploitation since attempt 6
     time.sleep(0.5)
@@ -319,32 +294,8 @@ def test_a_recorder_killed_mid_run_leaves_a_recoverable_bag_and_an_undisturbed_r
     bench: TwoHostBench, tmp_path: Path
 ) -> None:
     g = graph(bench, tmp_path)
-    rig_args = [
-        "--ros-args",
-        "-r",
-        "__ns:=/leg",
-        "-p",
-        "time_mode:=fast",
-        "-p",
-        "rig.fast_max_real_time_factor:=5.0",
-    ]
-    sim = g.node("rig", "g2p_sim", "sim", *rig_args)
-    recorder = g.node(
-        "rig", "g2p_recorder", "record", "--ros-args", "-r", "__ns:=/leg", "-p", f"run_id:={g.run_id}"
-    )
-    learner = g.node(
-        "ws",
-        "g2p_learner",
-        "learn",
-        "--ros-args",
-        "-r",
-        "__ns:=/leg",
-        "-p",
-        "recorder_node:=recorder",
-        "-p",
-        "use_sim_time:=true",
-        *ros_params(RUN),
-    )
+    sim, recorder = rig_nodes(g, "-p", "time_mode:=fast", "-p", "rig.fast_max_real_time_factor:=5.0")
+    learner = g.node("ws", "g2p_learner", "learn", *learner_args(RUN, sim_time=True))
     learner.wait_for_attempt(2)
     recorder.stop(signal.SIGKILL)
     assert learner.wait(300) == 0, learner.log()  # the run does not need its recorder once started
@@ -357,4 +308,4 @@ def test_a_recorder_killed_mid_run_leaves_a_recoverable_bag_and_an_undisturbed_r
     assert recovered.returncode == 0, recovered.stderr
     run = load_run(g.bag)
     assert run.babbling_segments and attempt_ends(run)[:1] == [1]
-    assert json.loads(json.dumps(run.configs))  # the configurations survived
+    assert "/leg/learner/config" in run.configs  # the latched configurations survived
