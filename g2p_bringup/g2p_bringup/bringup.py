@@ -36,7 +36,7 @@ from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 from rclpy.utilities import remove_ros_args
 
 from g2p.bags.runs import new_run_id
-from g2p_bringup.dds import interface_address, profile_environment, two_host_environment
+from g2p_bringup.dds import interface_address, one_host_environment, two_host_environment
 from g2p_bringup.graph import HOSTS, Graph, GraphError, NodeSpec, load_graph
 from g2p_ros.signals import init_with_stop_event
 
@@ -93,16 +93,15 @@ def _overrides(settings: list[str]) -> dict[str, dict[str, Any]]:
     return out
 
 
-def _node_environment(dds_interface: str = "", profile_dir: Path | None = None) -> dict[str, str]:
+def _node_environment(profile_dir: Path, dds_interface: str = "") -> dict[str, str]:
     """The nodes' environment: ours, with the graph's Fast DDS profile unless one is set already.
 
-    On two hosts, the UDP-only profile for `dds_interface` (written into `profile_dir`) instead.
+    The profile is written into `profile_dir`; on two hosts, the UDP-only one for `dds_interface`.
     """
     env = dict(os.environ)
-    if dds_interface and profile_dir is not None:
+    if dds_interface:
         return two_host_environment(env, interface_address(dds_interface), profile_dir)
-    profile = Path(get_package_share_directory("g2p_bringup")) / "config" / "fastdds_discovery.xml"
-    env.update(profile_environment(env, profile))
+    env.update(one_host_environment(env, profile_dir))
     return env
 
 
@@ -160,7 +159,7 @@ def run(graph: Graph, log_dir: Path, stop: threading.Event, dds_interface: str =
     code = 1
     with tempfile.TemporaryDirectory(prefix="g2p-bringup-") as params_dir:
         try:
-            env = _node_environment(dds_interface, Path(params_dir))
+            env = _node_environment(Path(params_dir), dds_interface)
             procs = [Process(spec, Path(params_dir), log_dir, env) for spec in graph.nodes]
             main = next((p for p in procs if p.spec is graph.main), None)
             while (main is None or main.running()) and not stop.is_set():

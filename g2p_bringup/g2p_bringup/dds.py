@@ -1,11 +1,12 @@
 """The Fast DDS settings of the graph: the one-host profile, and a UDP-only profile for two hosts.
 
-One host: `config/fastdds_discovery.xml` (faster participant announcements); discovery stays on loopback
-(ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST). Two hosts (`bringup --host rig|workstation`): a profile written
-for the interface the user names, so DDS uses that interface only, over UDPv4 only (shared memory would
-bypass the network between processes that share /dev/shm), in messages no larger than one Ethernet frame
-(a sample lost on a lossy link is resent fragment by fragment rather than as 64 kB IP-fragmented
-datagrams, which lose a fragment far more often).
+One host: `config/fastdds_discovery.xml` (faster participant announcements and heartbeats); discovery
+stays on loopback (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST). Two hosts (`bringup --host rig|workstation`):
+a profile written for the interface the user names, so DDS uses that interface only, over UDPv4 only
+(shared memory would bypass the network between processes that share /dev/shm), in messages no larger
+than one Ethernet frame (a sample lost on a lossy link is resent fragment by fragment rather than as
+64 kB IP-fragmented datagrams, which lose a fragment far more often). Both are templates filled in for
+the installed Fast DDS (2.x and 3.x name some XML elements differently).
 """
 
 from __future__ import annotations
@@ -38,14 +39,32 @@ def profile_variable() -> str:
     return PROFILE_VARIABLES[0] if int(version.split(".")[0]) >= 9 else PROFILE_VARIABLES[1]
 
 
-def profile_environment(environ: dict[str, str], profile: Path) -> dict[str, str]:
-    """The variable to add to `environ` so that the installed Fast DDS loads `profile`.
+def one_host_environment(environ: dict[str, str], directory: Path) -> dict[str, str]:
+    """The variable to add to `environ` so that the installed Fast DDS loads the one-host profile.
 
-    Nothing when the user named a profiles file already (in either variable): theirs is used.
+    The profile is written into `directory` for the installed Fast DDS. Nothing when the user named a
+    profiles file already (in either variable): theirs is used.
     """
     if any(environ.get(name) for name in PROFILE_VARIABLES):
         return {}
+    profile = directory / "fastdds_discovery.xml"
+    profile.write_text(_profile("fastdds_discovery.xml", {}))
     return {profile_variable(): str(profile)}
+
+
+def _profile(template: str, values: dict[str, str]) -> str:
+    """A profiles file of config/ filled in for the installed Fast DDS."""
+    filled = {
+        **values,
+        # Fast DDS 3 renamed the XML elements of the writer's times.
+        "@HEARTBEAT_PERIOD@": "heartbeat_period"
+        if profile_variable() == PROFILE_VARIABLES[0]
+        else "heartbeatPeriod",
+    }
+    text = (Path(get_package_share_directory("g2p_bringup")) / "config" / template).read_text()
+    for placeholder, value in filled.items():
+        text = text.replace(placeholder, value)
+    return text
 
 
 def interface_address(interface: str) -> str:
@@ -68,19 +87,9 @@ def two_host_profile(address: str) -> str:
     Same participant announcements as the one-host profile (every 0.25 s); reliable writers' heartbeats
     every 0.1 s, so that a sample lost on the link is asked for again within a tenth of a second.
     """
-    share = Path(get_package_share_directory("g2p_bringup")) / "config"
-    values = {
-        "@ADDRESS@": address,
-        "@MAX_MESSAGE@": str(TWO_HOST_MAX_MESSAGE_BYTES),
-        # Fast DDS 3 renamed the XML elements of the writer's times.
-        "@HEARTBEAT_PERIOD@": "heartbeat_period"
-        if profile_variable() == PROFILE_VARIABLES[0]
-        else "heartbeatPeriod",
-    }
-    text = (share / "fastdds_two_hosts.xml").read_text()
-    for placeholder, value in values.items():
-        text = text.replace(placeholder, value)
-    return text
+    return _profile(
+        "fastdds_two_hosts.xml", {"@ADDRESS@": address, "@MAX_MESSAGE@": str(TWO_HOST_MAX_MESSAGE_BYTES)}
+    )
 
 
 def two_host_environment(environ: dict[str, str], address: str, directory: Path) -> dict[str, str]:

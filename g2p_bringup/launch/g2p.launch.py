@@ -23,7 +23,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from g2p.bags.runs import new_run_id
-from g2p_bringup.dds import interface_address, profile_environment, two_host_environment
+from g2p_bringup.dds import interface_address, one_host_environment, two_host_environment
 from g2p_bringup.graph import load_graph
 
 
@@ -67,7 +67,7 @@ def generate_launch_description():
     """The graph of config/graph.yaml as launch actions."""
     share = Path(get_package_share_directory("g2p_bringup"))
     default_graph = str(share / "config" / "graph.yaml")
-    profile = profile_environment(dict(os.environ), share / "config" / "fastdds_discovery.xml")
+    profile = one_host_environment(dict(os.environ), Path(tempfile.mkdtemp(prefix="g2p-launch-")))
     return LaunchDescription(
         [
             *(SetEnvironmentVariable(name, value) for name, value in profile.items()),

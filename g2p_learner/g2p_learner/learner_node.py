@@ -360,6 +360,7 @@ class LearnerNode(Node):
                 self._adopt_recorder_run()
                 return execute(goal_handle)
             except (RigCancelled, FitCancelled) as err:
+                self._event("run_end", detail={"cancelled": str(err)})
                 goal_handle.canceled()
                 return action.Result(message=f"cancelled: {err}")
             except RigUnreachable as err:

@@ -31,27 +31,28 @@ def no_user_profile(monkeypatch: pytest.MonkeyPatch) -> None:
 
 @pytest.mark.usefixtures("no_user_profile")
 def test_the_profile_is_set_in_the_installed_fast_dds_variable_unless_the_user_set_one(
-    monkeypatch: pytest.MonkeyPatch,
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
-    env = _node_environment()
+    env = _node_environment(tmp_path)
     assert [name for name in PROFILE_VARIABLES if name in env] == [profile_variable()]
     profile = Path(env[profile_variable()])
     assert profile.name == "fastdds_discovery.xml" and profile.is_file()
+    assert "@" not in profile.read_text()  # every placeholder filled in
     for name in PROFILE_VARIABLES:  # a user's file under either name is kept, and nothing is added
         monkeypatch.setenv(name, "/elsewhere/profiles.xml")
-        env = _node_environment()
+        env = _node_environment(tmp_path)
         assert [n for n in PROFILE_VARIABLES if n in env] == [name]
         assert env[name] == "/elsewhere/profiles.xml"
         monkeypatch.delenv(name)
 
 
 @pytest.mark.usefixtures("no_user_profile")
-def test_fast_dds_loads_the_profile_without_errors() -> None:
+def test_fast_dds_loads_the_profile_without_errors(tmp_path: Path) -> None:
     """A node started with the profile comes up, and Fast DDS reports no XML error or warning."""
-    output = _probe(_node_environment())
+    output = _probe(_node_environment(tmp_path))
     assert "XMLPARSER" not in output and "Error" not in output and "WARN" not in output, output
     # The same check catches a broken profile: the file is really read on this distribution.
-    broken = dict(_node_environment(), **{profile_variable(): os.devnull})
+    broken = dict(_node_environment(tmp_path), **{profile_variable(): os.devnull})
     assert "XMLPARSER" in _probe(broken)
 
 
