@@ -7,6 +7,7 @@ import os
 import sys
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -43,3 +44,16 @@ def _stop_leftover_processes() -> Iterator[None]:
     rosproc = sys.modules.get("tests.nodes.rosproc")
     if rosproc is not None:
         rosproc.stop_leftovers()
+
+
+@pytest.fixture
+def two_host_bench() -> Iterator[Any]:
+    """A rig and a workstation network namespace joined by a clean link (tests/twohost), torn down after
+    the test; skipped, with the reason, where namespaces cannot be made (not root)."""
+    from tests.twohost.bench import TwoHostBench, available  # only the tests that ask for a bench
+
+    reason = available()
+    if reason is not None:
+        pytest.skip(reason)
+    with TwoHostBench() as bench:
+        yield bench

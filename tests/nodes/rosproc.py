@@ -34,6 +34,18 @@ def executable(package: str, name: str) -> Path:
     return path
 
 
+def stop_process(popen: subprocess.Popen[Any], sig: int, timeout_s: float) -> int:
+    """Signal a running process and wait for it; kill it after `timeout_s` (s). Returns the exit code."""
+    if popen.poll() is None:
+        popen.send_signal(sig)
+        try:
+            popen.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            popen.kill()
+            popen.wait()
+    return popen.returncode
+
+
 class NodeProcess:
     """An installed executable running as a child process, its output captured to a log file.
 
@@ -63,15 +75,9 @@ class NodeProcess:
 
     def stop(self, sig: int = signal.SIGINT, timeout_s: float = 20.0) -> int:
         """Signal the process and wait for it; kill it after `timeout_s`. Returns the exit code."""
-        if self.popen.poll() is None:
-            self.popen.send_signal(sig)
-            try:
-                self.popen.wait(timeout_s)
-            except subprocess.TimeoutExpired:
-                self.popen.kill()
-                self.popen.wait()
+        code = stop_process(self.popen, sig, timeout_s)
         self._log.close()
-        return self.popen.returncode
+        return code
 
 
 _started: list[NodeProcess] = []

@@ -1,8 +1,8 @@
 """The graph on two hosts over a bad network: the rig (ROS 2 Jazzy, with the recorder beside it) in one
-network namespace, the learner in another, joined by the bench's impairable link (tests/twohost).
+network namespace, the learner in another, joined by the two_host_bench's impairable link (tests/twohost).
 
 Each test is a user's run through the installed executables: `bringup --host rig|workstation`, or the
-nodes one by one where one of them is killed and started again. DDS traffic stays inside the bench's
+nodes one by one where one of them is killed and started again. DDS traffic stays inside the two_host_bench's
 namespaces (UDPv4 on its TUN link only).
 """
 
@@ -11,11 +11,9 @@ from __future__ import annotations
 import signal
 import subprocess
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from g2p.bags import bag_is_complete
 from g2p.bags.dataset import RunData, load_run
@@ -23,7 +21,7 @@ from g2p.bags.resume import resume_point
 from g2p.safety import BASELINE_ACTIVATION
 from tests.commands import console_script
 from tests.nodes.rosproc import executable
-from tests.twohost.bench import TwoHostBench, available
+from tests.twohost.bench import TwoHostBench
 from tests.twohost.graph import SHORT_RUN, HostProcess, TwoHostGraph, ros_params, set_args
 
 SEED = 0
@@ -40,17 +38,8 @@ REALTIME_RUN = {
 }
 
 
-@pytest.fixture
-def bench() -> Iterator[TwoHostBench]:
-    reason = available()
-    if reason is not None:
-        pytest.skip(reason)
-    with TwoHostBench() as b:
-        yield b
-
-
-def graph(bench: TwoHostBench, tmp_path: Path, run_id: str = "two-hosts") -> TwoHostGraph:
-    return TwoHostGraph(bench, tmp_path, run_id)
+def graph(two_host_bench: TwoHostBench, tmp_path: Path, run_id: str = "two-hosts") -> TwoHostGraph:
+    return TwoHostGraph(two_host_bench, tmp_path, run_id)
 
 
 def attempt_ends(run: RunData) -> list[int]:
@@ -128,12 +117,12 @@ def learn_two_hosts(g: TwoHostGraph, rig: str, settings: dict[str, str]) -> tupl
 
 
 def test_a_seeded_run_over_an_impaired_link_equals_the_run_over_loopback(
-    bench: TwoHostBench, tmp_path: Path
+    two_host_bench: TwoHostBench, tmp_path: Path
 ) -> None:
     here = one_host_run(tmp_path, "loopback")
     # Two hosts: 20 ms +- 10 ms one way and 2 % loss, both ways.
-    bench.impair(delay_ms=20.0, jitter_ms=10.0, loss=0.02)
-    g = graph(bench, tmp_path)
+    two_host_bench.impair(delay_ms=20.0, jitter_ms=10.0, loss=0.02)
+    g = graph(two_host_bench, tmp_path)
     rig_side, workstation = learn_two_hosts(g, "sim", RUN)
     assert workstation.wait(600) == 0, workstation.log()
     assert rig_side.stop() in (0, 130), rig_side.log()
@@ -159,23 +148,23 @@ def test_a_seeded_run_over_an_impaired_link_equals_the_run_over_loopback(
     # All but, at most, the rig's start-up rest sample: published before any subscriber could match.
     assert published_ticks(rig_log) - 1 <= len(there.ticks.recording) <= published_ticks(rig_log)
     # The traffic crossed the link (and some of it was lost on the way and resent).
-    counters = bench.counters()
+    counters = two_host_bench.counters()
     for direction in ("rig_to_ws", "ws_to_rig"):
         assert counters[direction]["forwarded_packets"] > 1000
         assert counters[direction]["dropped_loss_packets"] > 0
 
 
 def test_a_partition_during_an_attempt_retries_it_once_the_link_returns(
-    bench: TwoHostBench, tmp_path: Path
+    two_host_bench: TwoHostBench, tmp_path: Path
 ) -> None:
-    g = graph(bench, tmp_path)
+    g = graph(two_host_bench, tmp_path)
     rig_side, workstation = learn_two_hosts(g, "sim_realtime", REALTIME_RUN)
     workstation.wait_for_attempt(1)
     time.sleep(1.0)  # attempt 2 plays (4 cycles, about 4 s)
     cut = time.time()
-    bench.partition()
+    two_host_bench.partition()
     time.sleep(3.0)
-    bench.restore()
+    two_host_bench.restore()
     healed = time.time()
     assert workstation.wait(300) == 0, workstation.log()
     assert rig_side.stop() in (0, 130), rig_side.log()
@@ -208,9 +197,9 @@ def test_a_partition_during_an_attempt_retries_it_once_the_link_returns(
 
 
 def test_a_partition_longer_than_the_limit_ends_the_run_cleanly_with_how_to_resume(
-    bench: TwoHostBench, tmp_path: Path
+    two_host_bench: TwoHostBench, tmp_path: Path
 ) -> None:
-    g = graph(bench, tmp_path)
+    g = graph(two_host_bench, tmp_path)
     # The workstation first: it waits for the rig's side and says so.
     workstation = g.bringup(
         "ws", "--rig", "sim", *set_args({**RUN, "learner.rig_lost_limit_s": "4.0"}, "learner")
@@ -220,9 +209,9 @@ def test_a_partition_longer_than_the_limit_ends_the_run_cleanly_with_how_to_resu
     )
     rig_side = g.bringup("rig", "--rig", "sim")
     workstation.wait_for_attempt(1)
-    bench.partition()
+    two_host_bench.partition()
     code = workstation.wait(120)
-    bench.restore()
+    two_host_bench.restore()
     assert code == 1
     assert "learn --resume" in workstation.log()
     assert rig_side.stop() in (0, 130), rig_side.log()
@@ -233,9 +222,9 @@ def test_a_partition_longer_than_the_limit_ends_the_run_cleanly_with_how_to_resu
 
 
 def test_a_rig_killed_and_restarted_mid_run_is_waited_for_and_the_run_completes(
-    bench: TwoHostBench, tmp_path: Path
+    two_host_bench: TwoHostBench, tmp_path: Path
 ) -> None:
-    g = graph(bench, tmp_path)
+    g = graph(two_host_bench, tmp_path)
     sim, recorder = rig_nodes(g, "-p", "time_mode:=realtime")
     learner = g.node("ws", "g2p_learner", "learn", *learner_args(REALTIME_RUN, sim_time=False))
     learner.wait_for_attempt(1)
@@ -252,10 +241,10 @@ def test_a_rig_killed_and_restarted_mid_run_is_waited_for_and_the_run_completes(
 
 
 def test_a_learner_killed_during_exploitation_resumes_bit_for_bit_from_the_bag(
-    bench: TwoHostBench, tmp_path: Path
+    two_host_bench: TwoHostBench, tmp_path: Path
 ) -> None:
     uninterrupted = one_host_run(tmp_path, "reference")  # the answer
-    g = graph(bench, tmp_path)
+    g = graph(two_host_bench, tmp_path)
     # A fast rig slowed to 3x real time, so that the kill falls inside an attempt.
     sim, recorder = rig_nodes(g, "-p", "time_mode:=fast", "-p", "rig.fast_max_real_time_factor:=3.0")
     learn_args = learner_args(RUN, sim_time=True)
@@ -291,9 +280,9 @@ def test_a_learner_killed_during_exploitation_resumes_bit_for_bit_from_the_bag(
 
 
 def test_a_recorder_killed_mid_run_leaves_a_recoverable_bag_and_an_undisturbed_run(
-    bench: TwoHostBench, tmp_path: Path
+    two_host_bench: TwoHostBench, tmp_path: Path
 ) -> None:
-    g = graph(bench, tmp_path)
+    g = graph(two_host_bench, tmp_path)
     sim, recorder = rig_nodes(g, "-p", "time_mode:=fast", "-p", "rig.fast_max_real_time_factor:=5.0")
     learner = g.node("ws", "g2p_learner", "learn", *learner_args(RUN, sim_time=True))
     learner.wait_for_attempt(2)

@@ -16,9 +16,11 @@ import time
 from pathlib import Path
 from typing import IO
 
+from tests.nodes.rosproc import stop_process
 from tests.twohost.bench import Host, TwoHostBench
 
 ROOT = Path(__file__).resolve().parents[2]
+ROS2_RUN = ROOT / "scripts" / "ros2-run"
 RIG_DISTRO = "jazzy"
 # The same short learning run everywhere: babbling (rig s), attempts of 4 cycles.
 SHORT_RUN = {
@@ -64,15 +66,9 @@ class HostProcess:
 
     def stop(self, sig: int = signal.SIGINT, timeout_s: float = 30.0) -> int:
         """Signal the process and wait for it (kill after `timeout_s`); its exit code."""
-        if self.popen.poll() is None:
-            self.popen.send_signal(sig)
-            try:
-                self.popen.wait(timeout_s)
-            except subprocess.TimeoutExpired:
-                self.popen.kill()
-                self.popen.wait()
+        code = stop_process(self.popen, sig, timeout_s)
         self._log.close()
-        return self.popen.returncode
+        return code
 
     def wait(self, timeout_s: float) -> int:
         """Wait for the process to end by itself; its exit code."""
@@ -106,51 +102,58 @@ class TwoHostGraph:
         popen = self.bench.popen(host, argv, env=env, cwd=self.workdir, stdout=log, stderr=subprocess.STDOUT)
         return HostProcess(popen, log_path, log)
 
-    def _command(self, host: Host, package: str, executable: str, args: list[str]) -> tuple[list[str], dict]:
-        """The command running an installed executable on `host` (the rig's on Jazzy), and its env."""
+    def _environment(self, host: Host) -> dict[str, str]:
+        """The environment `host`'s commands start from: its distribution (the rig's is Jazzy)."""
         env = _outside_environment()
         env["G2P_ROS_DISTRO"] = RIG_DISTRO if host == "rig" else os.environ.get("G2P_ROS_DISTRO", "kilted")
-        run = [str(ROOT / "scripts" / "with-env"), str(ROOT / "scripts" / "ros2-run"), package, executable]
-        return [*run, *args], env
+        return env
+
+    def _in_ros(
+        self, host: Host, name: str, command: list[str], env: dict[str, str], discovery: str | None = None
+    ) -> HostProcess:
+        """`command` in `host`'s ROS environment (scripts/with-env), optionally with a discovery range
+        (with-env keeps one host on loopback; the nodes of a two-host graph use the link)."""
+        prefix = [str(ROOT / "scripts" / "with-env")]
+        if discovery is not None:
+            prefix += ["env", f"ROS_AUTOMATIC_DISCOVERY_RANGE={discovery}"]
+        return self._start(host, name, [*prefix, *command], env)
+
+    def _with_profile(
+        self, host: Host, name: str, command: list[str], extra_env: dict[str, str] | None = None
+    ) -> HostProcess:
+        """`command` on `host` with the two-host DDS profile of its distribution (SUBNET discovery unless
+        `extra_env` names a range)."""
+        env = self._environment(host)
+        env[_PROFILE_VARIABLE[env["G2P_ROS_DISTRO"]]] = str(self._profile(host, env))
+        env.update(extra_env or {})
+        return self._in_ros(host, name, command, env, env.pop("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET"))
 
     def bringup(self, host: Host, *args: str) -> HostProcess:
-        """`bringup --host rig|workstation` on `host`, over the bench's link."""
+        """`bringup --host rig|workstation` on `host`, over the bench's link (bringup writes the profile)."""
         interface = self.bench.rig_tun if host == "rig" else self.bench.ws_tun
         side = "rig" if host == "rig" else "workstation"
-        argv, env = self._command(
-            host,
-            "g2p_bringup",
-            "bringup",
-            ["--host", side, "--dds-interface", interface, "--run-id", self.run_id, "--no-report", *args],
-        )
-        return self._start(host, f"bringup-{side}", argv, env)
+        options = [
+            "--host",
+            side,
+            "--dds-interface",
+            interface,
+            "--run-id",
+            self.run_id,
+            "--no-report",
+            *args,
+        ]
+        command = [str(ROS2_RUN), "g2p_bringup", "bringup", *options]
+        return self._in_ros(host, f"bringup-{side}", command, self._environment(host))
 
     def node(self, host: Host, package: str, executable: str, *args: str) -> HostProcess:
         """One installed node on `host`, with the two-host DDS profile of its distribution."""
-        argv, env = self._command(host, package, executable, list(args))
-        env[_PROFILE_VARIABLE[env["G2P_ROS_DISTRO"]]] = str(self._profile(host, env))
-        # scripts/with-env keeps one host on loopback; the nodes of a two-host graph use the link.
-        argv = [argv[0], "env", "ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET", *argv[1:]]
-        return self._start(host, executable, argv, env)
+        return self._with_profile(host, executable, [str(ROS2_RUN), package, executable, *args])
 
     def python(
         self, host: Host, script: Path, *args: str, extra_env: dict[str, str] | None = None
     ) -> HostProcess:
         """A Python script on `host` in its ROS environment, with the two-host DDS profile."""
-        env = _outside_environment()
-        env["G2P_ROS_DISTRO"] = RIG_DISTRO if host == "rig" else os.environ.get("G2P_ROS_DISTRO", "kilted")
-        env[_PROFILE_VARIABLE[env["G2P_ROS_DISTRO"]]] = str(self._profile(host, env))
-        env.update(extra_env or {})
-        discovery = env.pop("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET")
-        argv = [
-            str(ROOT / "scripts" / "with-env"),
-            "env",
-            f"ROS_AUTOMATIC_DISCOVERY_RANGE={discovery}",
-            "python",
-            str(script),
-            *args,
-        ]
-        return self._start(host, script.stem, argv, env)
+        return self._with_profile(host, script.stem, ["python", str(script), *args], extra_env)
 
     def _profile(self, host: Host, env: dict[str, str]) -> Path:
         """The two-host profile for `host`'s address, made by that host's distribution (the XML of Fast
