@@ -2,6 +2,8 @@
 
 features (10,) -> target kinematics (N, 6) -> inverse map -> activations (N, 3) clipped to
 [baseline, 1] -> played on the rig from rest -> reward (belt travel, mm), energy (J) and tracking error.
+In closed loop (g2p.closed_loop) the rig evaluates the map itself every tick, on the target kinematics
+corrected by the measured joint state.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from g2p.closed_loop import ControlMode, FeedbackConfig, Trajectory
 from g2p.inverse_map import InverseMap
 from g2p.limit_cycle import LimitCycleConfig, attempt_kinematics
 from g2p.plant import Recording
@@ -40,11 +43,14 @@ class AttemptOutcome:
     Attributes:
         features: the limit cycle's features, shape (10,).
         desired: target kinematics, one row per tick, shape (N, 6) (rad, rad/s, rad/s^2).
-        activations: activations commanded, shape (N, 3).
+        activations: activations commanded (open loop) or decided by the rig (closed loop), shape (N, 3).
         recording: the N ticks the rig recorded.
         reward_mm: belt travel during the attempt (mm, + backward = forward locomotion).
         energy_j: electrical energy the motors drew during the attempt (J).
         tracking: tracking error over the second half.
+        control: open or closed loop.
+        correction_rad_s: closed loop: the velocity correction of each tick, shape (N, 2) (rad/s); None in
+            open loop.
     """
 
     features: FloatArray
@@ -54,6 +60,8 @@ class AttemptOutcome:
     reward_mm: float
     energy_j: float
     tracking: TrackingError
+    control: ControlMode = ControlMode.OPEN
+    correction_rad_s: FloatArray | None = None
 
 
 def plan_attempt(
@@ -108,8 +116,9 @@ def run_attempt(
     lead_ticks: int = 0,
     progress: ProgressCallback | None = None,
     cancel: threading.Event | None = None,
+    feedback: FeedbackConfig | None = None,
 ) -> AttemptOutcome:
-    """Reset the rig to rest and play one attempt on it.
+    """Reset the rig to rest and play one attempt on it, open loop or (given `feedback`) closed loop.
 
     Args:
         rig: the rig (in-process plant or ROS rig contract).
@@ -119,15 +128,25 @@ def run_attempt(
         lead_ticks: the map's command lead (see `plan_attempt`).
         progress: called with (ticks done, ticks total).
         cancel: when set, the rig drops to baseline and RigCancelled is raised.
+        feedback: None plays the map's activations open loop (the paper's G2P); otherwise the rig plays
+            the trajectory in closed loop with these settings.
 
     Raises:
         ValueError: invalid features.
         RigError: the rig failed (RigCancelled when cancelled).
     """
     f = np.array(features, dtype=np.float64)
-    desired, activations = plan_attempt(f, inverse_map, cycle, lead_ticks)
-    rig.reset()
-    recording = rig.play(activations, progress, cancel)
+    correction = None
+    if feedback is None:
+        desired, activations = plan_attempt(f, inverse_map, cycle, lead_ticks)
+        rig.reset()
+        recording = rig.play(activations, progress, cancel)
+    else:
+        desired = attempt_kinematics(f, cycle)
+        rig.reset()
+        tracked = rig.play_trajectory(Trajectory(desired, inverse_map, feedback, lead_ticks), progress, cancel)
+        recording, correction = tracked.recording, tracked.correction_rad_s
+        activations = recording.activation
     return AttemptOutcome(
         features=f,
         desired=desired,
@@ -136,4 +155,6 @@ def run_attempt(
         reward_mm=recording.belt_travel_mm,
         energy_j=recording.energy_used_j,
         tracking=tracking_error(desired[:, :2], recording.position_rad),
+        control=ControlMode.OPEN if feedback is None else ControlMode.CLOSED,
+        correction_rad_s=correction,
     )

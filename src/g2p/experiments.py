@@ -319,7 +319,14 @@ class Generalization:
         inverse_map = self._babbling_map if babbling else self.learner.inverse_map
         features = self.test[len(errors)]
         outcome = run_attempt(
-            rig, inverse_map, features, self.cycle, self.learner.lead_ticks, progress, cancel
+            rig,
+            inverse_map,
+            features,
+            self.cycle,
+            self.learner.lead_ticks,
+            progress,
+            cancel,
+            self.learner.config.closed_loop_feedback,
         )
         errors.append(outcome.tracking)
         return TrackingReport("testing", len(errors), features, outcome.tracking, babbling_map=babbling)

@@ -340,7 +340,8 @@ class InverseMap:
             x: kinematics, shape (N, 6) or (6,) (rad, rad/s, rad/s^2).
 
         Returns:
-            Activations, shape (N, 3) (or (3,) for a single row).
+            Activations, shape (N, 3) (or (3,) for a single row); each row's is the same, bit for bit,
+            whatever batch it is predicted in.
 
         Raises:
             InverseMapError: not fitted, wrong shape or non-finite input.
@@ -354,7 +355,11 @@ class InverseMap:
         if not np.all(np.isfinite(xa)):
             raise InverseMapError("x: non-finite values")
         w1, b1, w2, b2 = params
-        out = ys.inverse(np.tanh(xs.forward(xa) @ w1.T + b1) @ w2.T + b2)
+        # Products summed row by row rather than a BLAS matrix product, whose summation order depends on
+        # the batch: a rig evaluating the map one tick at a time (g2p.closed_loop) then gets exactly the
+        # activations a whole sequence gets.
+        hidden = np.tanh((xs.forward(xa)[:, np.newaxis, :] * w1).sum(axis=2) + b1)
+        out = ys.inverse((hidden[:, np.newaxis, :] * w2).sum(axis=2) + b2)
         out = np.clip(out, self.config.activation_low, self.config.activation_high)
         return out[0] if single else out
 

@@ -14,7 +14,8 @@ import numpy as np
 
 from g2p.attempt import AttemptOutcome, run_attempt
 from g2p.babbling import BabblingConfig, babbling_activations
-from g2p.config import require_positive
+from g2p.closed_loop import ControlMode, FeedbackConfig
+from g2p.config import ConfigError, require_positive
 from g2p.inverse_map import FitCancelled, FitReport, InverseMap, InverseMapConfig
 from g2p.kinematics import PreprocessConfig, TrainingPairs, recording_pairs
 from g2p.limit_cycle import LimitCycleConfig
@@ -34,6 +35,8 @@ class LearnerConfig:
         babbling: the babbling session.
         preprocess: resampling and differentiation.
         inverse_map: network and training.
+        control: how attempts are played: open loop (the paper's G2P) or closed loop.
+        feedback: the closed loop's settings (used in closed loop only).
     """
 
     seed: int = 0
@@ -41,9 +44,22 @@ class LearnerConfig:
     babbling: BabblingConfig = field(default_factory=BabblingConfig)
     preprocess: PreprocessConfig = field(default_factory=PreprocessConfig)
     inverse_map: InverseMapConfig = field(default_factory=InverseMapConfig)
+    control: ControlMode = ControlMode.OPEN
+    feedback: FeedbackConfig = field(default_factory=FeedbackConfig)
 
     def __post_init__(self) -> None:
         require_positive(self.babbling_chunk_s, "babbling_chunk_s")
+        try:
+            object.__setattr__(self, "control", ControlMode(self.control))
+        except ValueError as err:
+            raise ConfigError(
+                f"control: must be one of {[m.value for m in ControlMode]}, got {self.control!r}"
+            ) from err
+
+    @property
+    def closed_loop_feedback(self) -> FeedbackConfig | None:
+        """The feedback settings attempts are played with; None in open loop."""
+        return self.feedback if self.control is ControlMode.CLOSED else None
 
 
 @dataclass
@@ -177,7 +193,16 @@ class Learner:
         Returns:
             The attempt's outcome, and the refinement's report (None when not refined).
         """
-        outcome = run_attempt(rig, self.inverse_map, features, cycle, self.lead_ticks, progress, cancel)
+        outcome = run_attempt(
+            rig,
+            self.inverse_map,
+            features,
+            cycle,
+            self.lead_ticks,
+            progress,
+            cancel,
+            self.config.closed_loop_feedback,
+        )
         return outcome, (
             self.refine_with(outcome.recording, f"attempt {self.refinements + 1}", cancel) if refine else None
         )

@@ -1,4 +1,5 @@
-"""The rig as the learner sees it: reset to rest, play a whole activation sequence, get its samples.
+"""The rig as the learner sees it: reset to rest, play a whole activation sequence (or a trajectory in
+closed loop), get its samples.
 
 The learner drives a `Rig`: an in-process plant wrapped by `PlantRig`, or the ROS 2 rig contract
 (g2p_ros.rig_client.RigClient) served by the simulator or the hardware driver.
@@ -9,12 +10,13 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-from g2p.plant import NOMINAL_TICK_HZ, Plant, Recording
+from g2p.closed_loop import TrackedRecording, Trajectory, TrajectoryTracker
+from g2p.plant import NOMINAL_TICK_HZ, Plant, Recording, TickSample
 from g2p.safety import check_activation_sequence
 
 ProgressCallback = Callable[[int, int], None]
@@ -60,6 +62,20 @@ class Rig(Protocol):
         """
         ...
 
+    def play_trajectory(
+        self,
+        trajectory: Trajectory,
+        progress: ProgressCallback | None = None,
+        cancel: threading.Event | None = None,
+    ) -> TrackedRecording:
+        """Play a trajectory in closed loop, the map evaluated by the rig each tick (g2p.closed_loop).
+
+        Raises:
+            RigError: the trajectory could not be played whole.
+            RigCancelled: `cancel` was set before the end.
+        """
+        ...
+
 
 class PlantRig:
     """A `Rig` over an in-process plant (no ROS): for fast experiments and tests.
@@ -97,6 +113,27 @@ class PlantRig:
             progress(len(seq), len(seq))
         return Recording.from_samples(samples)
 
+    def play_trajectory(
+        self,
+        trajectory: Trajectory,
+        progress: ProgressCallback | None = None,
+        cancel: threading.Event | None = None,
+    ) -> TrackedRecording:
+        """Play the trajectory on the plant in closed loop, tick by tick."""
+        tracker = TrajectoryTracker(trajectory, 1.0 / self.plant.tick_hz)
+        samples: list[TickSample] = []
+        n = len(tracker)
+        for k in range(n):
+            if cancel is not None and cancel.is_set():
+                self.plant.step(np.zeros(3))
+                raise RigCancelled(f"trajectory cancelled after {k} of {n} ticks")
+            samples.append(self.plant.step(tracker.next_activation(samples[-1] if samples else None)))
+            if progress is not None and (k + 1) % self._progress_every == 0:
+                progress(k + 1, n)
+        if progress is not None:
+            progress(n, n)
+        return TrackedRecording(Recording.from_samples(samples), tracker.correction_rad_s)
+
 
 class RigBusy(RigError):
     """The rig refused a sequence or reset because it still plays another one.
@@ -107,6 +144,7 @@ class RigBusy(RigError):
 
 
 RigEventCallback = Callable[[str, dict[str, Any]], None]
+_Played = TypeVar("_Played", Recording, TrackedRecording)
 
 
 class RetryingRig:
@@ -154,13 +192,27 @@ class RetryingRig:
         cancel: threading.Event | None = None,
     ) -> Recording:
         """Play the sequence; if the rig is lost meanwhile, play it again from rest once it is back."""
+        return self._retry("play", lambda: self._rig.play(activations, progress, cancel), cancel)
+
+    def play_trajectory(
+        self,
+        trajectory: Trajectory,
+        progress: ProgressCallback | None = None,
+        cancel: threading.Event | None = None,
+    ) -> TrackedRecording:
+        """Play the trajectory; if the rig is lost meanwhile, play it again from rest once it is back."""
+        return self._retry(
+            "play_trajectory", lambda: self._rig.play_trajectory(trajectory, progress, cancel), cancel
+        )
+
+    def _retry(self, call: str, play: Callable[[], _Played], cancel: threading.Event | None) -> _Played:
         first_lost: float | None = None  # the limit counts from the first loss: a sequence that never
         while True:  # gets through ends the run, even if resets do
             try:
-                return self._rig.play(activations, progress, cancel)
+                return play()
             except (RigUnreachable, RigBusy) as err:
                 first_lost = time.monotonic() if first_lost is None else first_lost
-                self._recover("play", err, cancel, first_lost)
+                self._recover(call, err, cancel, first_lost)
                 self.retries += 1
 
     def _recover(
