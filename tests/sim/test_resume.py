@@ -27,9 +27,9 @@ from g2p.sim import MujocoLeg, MujocoLegConfig
 
 CONFIG = LearnerConfig(seed=1, babbling_chunk_s=10.0, babbling=BabblingConfig(duration_s=20.0))
 CYCLE = LimitCycleConfig.treadmill(n_cycles=3)
-# With seed 1 the second attempt crosses 12 mm: 2 exploration then 3 exploitation attempts.
+# With seed 1 the third attempt crosses 12 mm: 3 exploration then 3 exploitation attempts.
 SEARCH = SearchConfig(threshold_mm=12.0, exploitation_attempts=3)
-N_ATTEMPTS = 5
+N_ATTEMPTS = 6
 
 
 def babbled() -> tuple[TreadmillRun, PlantRig]:
