@@ -5,6 +5,7 @@ feedback arrives and a summary at the end. `--serve` only hosts the actions (for
 
     ros2 run g2p_learner learn [--serve] [--dataset-bag DIR] [--ros-args -p search.threshold_mm:=64.0 ...]
     ros2 run g2p_learner learn --resume bags/<run>    # continue a run after its last completed attempt
+    ros2 run g2p_learner learn --control closed       # every attempt in closed loop (g2p.closed_loop)
 """
 
 from __future__ import annotations
@@ -20,8 +21,10 @@ import rclpy
 from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
+from rclpy.parameter import Parameter
 from rclpy.utilities import remove_ros_args
 
+from g2p.closed_loop import ControlMode
 from g2p.config import ConfigError
 from g2p_interfaces.action import Learn
 from g2p_learner.learner_node import LearnerNode
@@ -46,6 +49,12 @@ def _parse(argv: list[str]) -> argparse.Namespace:
         default="",
         metavar="BAG",
         help="continue the run recorded in BAG from its last completed attempt (same run id)",
+    )
+    parser.add_argument(
+        "--control",
+        choices=[m.value for m in ControlMode],
+        help="play attempts open loop (the paper's G2P) or closed loop; sets the learner.control parameter "
+        "(default: the parameter's value, open)",
     )
     options = parser.parse_args(remove_ros_args(argv)[1:])
     if options.resume and options.dataset_bag:
@@ -152,7 +161,8 @@ def main(args: list[str] | None = None) -> None:
     code = 0
     spinner = None
     try:
-        node = LearnerNode()
+        overrides = [] if options.control is None else [Parameter("learner.control", value=options.control)]
+        node = LearnerNode(overrides)
         # Before spinning starts: rclpy's ActionClient joins the node half-built (ros2/rclpy#1589).
         client = None if options.serve else ActionClient(node, Learn, action_name(node, "learn"))
         executor = MultiThreadedExecutor(num_threads=4)

@@ -1,8 +1,8 @@
 """The learner node: babbling, attempts, full G2P runs and tracking experiments as ROS 2 actions.
 
-It drives whatever rig serves `run_activations` and `reset` in its namespace (simulator or hardware,
-chosen by remapping), publishes every event and every inverse map for the recorder, and keeps the
-algorithm in the core library (g2p.learner, g2p.experiments).
+It drives whatever rig serves `run_activations`, `run_trajectory` (closed loop) and `reset` in its
+namespace (simulator or hardware, chosen by remapping), publishes every event and every inverse map for
+the recorder, and keeps the algorithm in the core library (g2p.learner, g2p.experiments).
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Header, String
 
@@ -169,8 +170,8 @@ class GoalRejected(ValueError):
 class LearnerNode(Node):
     """Hosts the babble, attempt, learn and track actions; one goal at a time."""
 
-    def __init__(self) -> None:
-        super().__init__("learner", namespace=DEFAULT_NAMESPACE)
+    def __init__(self, parameter_overrides: list[Parameter] | None = None) -> None:
+        super().__init__("learner", namespace=DEFAULT_NAMESPACE, parameter_overrides=parameter_overrides)
         search_fields = ("n_features", "feature_low", "feature_high")
         base = declare_config(self, LearnerNodeConfig, exclude=("learner", "cycle", "search"))
         self.config = replace(
@@ -402,7 +403,13 @@ class LearnerNode(Node):
         cycle = replace(self.config.cycle, n_cycles=goal.cycles) if goal.cycles else self.config.cycle
         features = np.asarray(goal.features)
         number = self.learner.refinements + 1
-        self._event("attempt_start", phase="attempt", attempt=number, features=features)
+        self._event(
+            "attempt_start",
+            phase="attempt",
+            attempt=number,
+            features=features,
+            detail={"control": self.learner.config.control.value},
+        )
 
         def progress(done: int, total: int) -> None:
             goal_handle.publish_feedback(
@@ -634,7 +641,13 @@ class LearnerNode(Node):
             self._check_cancel(goal_handle)
             step = upcoming()
             if step is not None:
-                self._event("attempt_start", phase=step.phase, attempt=step.number, features=step.features)
+                self._event(
+                    "attempt_start",
+                    phase=step.phase,
+                    attempt=step.number,
+                    features=step.features,
+                    detail={"control": self.learner.config.control.value},
+                )
             report = experiment.next_attempt(self.rig, cancel=self._cancel)
             done(report)
             if report.fit is not None:
@@ -689,7 +702,11 @@ class LearnerNode(Node):
             phase=phase,
             attempt=number,
             features=outcome.features,
-            detail={"desired_rad": outcome.desired[:, :2].tolist(), **_segment_detail(outcome.recording)},
+            detail={
+                "desired_rad": outcome.desired[:, :2].tolist(),
+                **_segment_detail(outcome.recording),
+                **_control_detail(outcome),
+            },
             reward_mm=outcome.reward_mm,
             energy_j=outcome.energy_j,
             tracking_mse_deg2=outcome.tracking.mse_deg2,
@@ -737,6 +754,13 @@ class _BabblingSegments:
         recording = self._node.rig.play(activations, progress, cancel)
         self._node._segment_event("phase_end", recording)
         return recording
+
+
+def _control_detail(outcome: AttemptOutcome) -> dict[str, object]:
+    """How the attempt was played; in closed loop the rig's velocity correction of each tick (rad/s)."""
+    if outcome.correction_rad_s is None:
+        return {"control": outcome.control.value}
+    return {"control": outcome.control.value, "correction_rad_s": outcome.correction_rad_s.tolist()}
 
 
 def _segment_detail(recording: Recording) -> dict[str, int]:

@@ -62,7 +62,10 @@ def declare_config(node: Node, cls: type[T], prefix: str = "", exclude: tuple[st
         except InvalidParameterTypeException as err:  # e.g. 0 for a float: ROS does not convert
             hint = " (a float needs its decimal point: 1.0, not 1)" if isinstance(default, float) else ""
             raise ConfigError(f"{name}: wrong type{hint}: {err}") from err
-        values[f.name] = _from_ros(node.get_parameter(name).value, default)
+        try:
+            values[f.name] = _from_ros(node.get_parameter(name).value, default)
+        except ValueError as err:  # e.g. an enum's unknown value
+            raise ConfigError(f"{name}: {err}") from err
     try:
         return cls(**values)
     except ConfigError as err:  # the dataclass names its field; the user writes the parameter's name

@@ -144,7 +144,8 @@ def run_attempt(
     else:
         desired = attempt_kinematics(f, cycle)
         rig.reset()
-        tracked = rig.play_trajectory(Trajectory(desired, inverse_map, feedback, lead_ticks), progress, cancel)
+        trajectory = Trajectory(desired, inverse_map, feedback, lead_ticks)
+        tracked = rig.play_trajectory(trajectory, progress, cancel)
         recording, correction = tracked.recording, tracked.correction_rad_s
         activations = recording.activation
     return AttemptOutcome(

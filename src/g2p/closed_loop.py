@@ -52,7 +52,7 @@ class ControlMode(str, enum.Enum):
     OPEN = "open"
     """The paper's G2P: the map's activations for the desired kinematics, computed once and played blind."""
     CLOSED = "closed"
-    """The map evaluated on the rig every tick, on the desired kinematics corrected by joint-angle feedback."""
+    """The map evaluated on the rig every tick, on the desired kinematics corrected by feedback."""
 
 
 @dataclass(frozen=True)
@@ -110,8 +110,9 @@ class FeedbackConfig:
 
 
 class FeedbackLaw:
-    """The correction of the map's velocity input from one tick's errors, with its integral and output
-    bounded: one trajectory's state.
+    """The correction of the map's velocity input from one tick's errors: one trajectory's state.
+
+    The integral of the angle error and the correction are both bounded.
 
     Args:
         config: gains and limits (its delay is the tracker's business).
@@ -228,7 +229,8 @@ class TrajectoryTracker:
         x[N_JOINTS : 2 * N_JOINTS] += self._correction
         self.correction_rad_s[k] = self._correction
         self.ticks_done = k + 1
-        return self.trajectory.inverse_map.predict(x[np.newaxis])[0]
+        activation: FloatArray = self.trajectory.inverse_map.predict(x[np.newaxis])[0]
+        return activation
 
 
 def check_trajectory(desired: ArrayLike) -> FloatArray:

@@ -1,5 +1,7 @@
-"""The rig as the learner sees it: reset to rest, play a whole activation sequence (or a trajectory in
-closed loop), get its samples.
+"""The rig as the learner sees it: reset to rest, play a whole sequence (or trajectory), get its samples.
+
+A sequence is a fixed list of activations (open loop); a trajectory's activations are decided by the rig
+tick by tick from the inverse map and the measured joint state (closed loop, g2p.closed_loop).
 
 The learner drives a `Rig`: an in-process plant wrapped by `PlantRig`, or the ROS 2 rig contract
 (g2p_ros.rig_client.RigClient) served by the simulator or the hardware driver.

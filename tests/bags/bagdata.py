@@ -136,6 +136,8 @@ def write_synthetic_run(
 
     Known answers: 80% of babbling ticks lie within 5% of a limit (limits given in run_start); rewards
     10, 30, 70 (exploration), 90, 80 (exploitation); threshold 64 mm (in run_start's search settings).
+    Attempts 1-3 are open loop (no "control" key, as older runs record them), 4 and 5 closed loop with a
+    velocity correction of (0.1 k, 0) rad/s at every tick of attempt k.
     One tick lacks its joint_states message (when skip_joint_state_of is set), so it is incomplete.
     """
     run = SyntheticRun(path)
@@ -260,12 +262,13 @@ def write_synthetic_run(
         for _ in range(50):
             last = tick(ticks)
         desired = [list(tick_values(j)["position_rad"] - 0.01) for j in ticks]
+        control = {} if number <= 3 else {"control": "closed", "correction_rad_s": [[0.1 * number, 0.0]] * 50}
         event(
             last + 1,
             "attempt_end",
             phase=phase,
             attempt=number,
-            detail={"desired_rad": desired},
+            detail={"desired_rad": desired, **control},
             reward_mm=reward,
             energy_j=4.0 + number,
             tracking_mse_deg2=100.0 / number,

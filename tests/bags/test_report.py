@@ -41,6 +41,10 @@ def test_summary_known_answers(run: SyntheticRun) -> None:
     assert [a["best_reward_mm"] for a in summary["attempts"]] == [10.0, 30.0, 70.0, 90.0, 90.0]
     assert [a["ticks"] for a in summary["attempts"]] == [50] * 5
     assert summary["tracking_mse_deg2"] == [100.0 / k for k in range(1, 6)]
+    assert [a["control"] for a in summary["attempts"]] == ["open"] * 3 + ["closed"] * 2
+    corrections = [a["correction_rms_rad_s"] for a in summary["attempts"]]
+    assert corrections[:3] == [None] * 3  # NaN in the JSON: open loop has no correction
+    assert corrections[3:] == pytest.approx([0.4 / np.sqrt(2), 0.5 / np.sqrt(2)])
     assert summary["inverse_map"]["snapshots"] == 6 and summary["inverse_map"]["last_refinement"] == 5
     assert summary["incomplete_ticks"] == 1
     assert summary["configs"] == ["/leg/learner/config"]
@@ -56,7 +60,7 @@ def test_figures_and_markdown(run: SyntheticRun) -> None:
         assert figure.read_bytes()[:8] == PNG_MAGIC
     table = result.summary_markdown.read_text()
     assert "| attempts to cross the threshold | 3 |" in table
-    assert "| 4 | exploitation | 50 | 90 | 90 | 8 | 25 | 0.1 |" in table
+    assert "| 4 | exploitation | closed | 50 | 90 | 90 | 8 | 25 | - | 0.2828 | 0.1 |" in table
 
 
 def test_report_shows_requested_attempt(run: SyntheticRun, tmp_path: Path) -> None:

@@ -9,6 +9,8 @@ from typing import Any
 import numpy as np
 import pytest
 
+from g2p.closed_loop import FeedbackConfig, TrackedRecording, Trajectory
+from g2p.inverse_map import InverseMap
 from g2p.plant import Recording
 from g2p.rig import PlantRig, ProgressCallback, RetryingRig, RigBusy, RigCancelled, RigUnreachable
 from g2p.sim import MujocoLeg, MujocoLegConfig
@@ -49,6 +51,18 @@ class LosingRig:
             self.rig.play(activations[: len(activations) // 2])  # the rig played on, unseen
             raise RigUnreachable("no word from the rig for 2.0 s")
         return self.rig.play(activations, progress, cancel)
+
+    def play_trajectory(
+        self,
+        trajectory: Trajectory,
+        progress: ProgressCallback | None = None,
+        cancel: threading.Event | None = None,
+    ) -> TrackedRecording:
+        self.calls.append("play_trajectory")
+        if self.lost_plays > 0:
+            self.lost_plays -= 1
+            raise RigUnreachable("no word from the rig for 2.0 s")
+        return self.rig.play_trajectory(trajectory, progress, cancel)
 
 
 def clean_play() -> Recording:
@@ -102,3 +116,16 @@ def test_cancel_while_waiting_for_the_rig() -> None:
     threading.Timer(0.2, cancel.set).start()
     with pytest.raises(RigCancelled):
         rig.play(ACTIVATIONS, cancel=cancel)
+
+
+def test_a_lost_closed_loop_trajectory_is_played_again_from_rest() -> None:
+    told: list[str] = []
+    losing = LosingRig(lost_plays=1)
+    rig = RetryingRig(losing, limit_s=30.0, retry_pause_s=0.01, on_event=lambda e, _d: told.append(e))
+    inverse_map = InverseMap()
+    inverse_map.fit(np.tile(np.linspace(-1, 1, 40)[:, None], (1, 6)), ACTIVATIONS, np.random.default_rng(0))
+    trajectory = Trajectory(np.zeros((30, 6)), inverse_map, FeedbackConfig())
+    got = rig.play_trajectory(trajectory)
+    assert losing.calls == ["play_trajectory", "reset", "play_trajectory"]
+    assert told == ["rig_lost", "rig_back"] and rig.retries == 1
+    assert len(got.recording) == 30 and got.correction_rad_s.shape == (30, 2)

@@ -60,6 +60,8 @@ class AttemptData:
         recording: the rig ticks of the attempt.
         desired_position_rad: the desired joint angles, one row per tick, shape (M, 2) (rad), from the
             events' detail JSON key "desired_rad" (None when not given).
+        correction_rad_s: closed loop: the rig's velocity correction of each tick, shape (M, 2) (rad/s),
+            from the detail key "correction_rad_s" (None in open loop or when not given).
     """
 
     attempt: int
@@ -68,6 +70,32 @@ class AttemptData:
     end: RunEvent | None
     recording: Recording
     desired_position_rad: FloatArray | None
+    correction_rad_s: FloatArray | None = None
+
+    @property
+    def control(self) -> str:
+        """How the attempt was played: "open" or "closed" loop (the events' detail key "control").
+
+        Runs recorded without the key were open loop.
+        """
+        for event in (self.end, self.start):
+            if event is not None and isinstance(event.detail.get("control"), str):
+                return str(event.detail["control"])
+        return "open"
+
+    @property
+    def tracking_rmse_rad(self) -> float:
+        """Tracking RMSE of the attempt (rad), NaN when not reported."""
+        return self.end.tracking_rmse_rad if self.end is not None else float("nan")
+
+    @property
+    def correction_rms_rad_s(self) -> float:
+        """RMS of the closed loop's velocity correction over the attempt, both joints (rad/s).
+
+        NaN in open loop.
+        """
+        c = self.correction_rad_s
+        return float(np.sqrt(np.mean(c**2))) if c is not None and c.size else float("nan")
 
     @property
     def reward_mm(self) -> float:
@@ -240,7 +268,17 @@ def _attempts(ticks: Ticks, events: list[RunEvent]) -> list[AttemptData]:
         closing = end if end is not None else next(iter(later), None)
         recording = _segment(ticks, start, closing, closes=end is not None)
         phase = start.phase or (end.phase if end is not None else "")
-        attempts.append(AttemptData(start.attempt, phase, start, end, recording, _desired(start, end)))
+        attempts.append(
+            AttemptData(
+                start.attempt,
+                phase,
+                start,
+                end,
+                recording,
+                _per_joint(start, end, "desired_rad"),
+                _per_joint(start, end, "correction_rad_s"),
+            )
+        )
     return attempts
 
 
@@ -264,7 +302,7 @@ def _bounds(start: RunEvent, end: RunEvent | None, closes: bool) -> _Bounds:
         return _Bounds(start.stamp_ns, int(_END_OF_TIME), False, None)
     detail = end.detail if closes else {}
     first, ticks = detail.get("first_tick_stamp_ns"), detail.get("ticks")
-    desired = _desired(end, None) if closes else None
+    desired = _per_joint(end, None, "desired_rad") if closes else None
     count = ticks if isinstance(ticks, int) else (len(desired) if desired is not None else None)
     high = int(_END_OF_TIME) if count is not None else end.stamp_ns
     if isinstance(first, int):
@@ -279,9 +317,10 @@ def _segment(ticks: Ticks, start: RunEvent, end: RunEvent | None, closes: bool) 
     return ticks.segment(b.low_ns, b.high_ns, b.include_low, b.count)
 
 
-def _desired(start: RunEvent, end: RunEvent | None) -> FloatArray | None:
+def _per_joint(start: RunEvent, end: RunEvent | None, key: str) -> FloatArray | None:
+    """The events' detail array `key` with one row of 2 per tick (e.g. "desired_rad"); None if absent."""
     for event in (start, end):
-        value = event.detail.get("desired_rad") if event is not None else None
+        value = event.detail.get(key) if event is not None else None
         if value is None:
             continue
         try:

@@ -176,15 +176,16 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
     if summary["attempts"]:
         lines += [
             "",
-            "| attempt | phase | ticks | reward (mm) | best (mm) | energy (J) | tracking MSE (deg^2) "
-            "| sigma | near limit |",
-            "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+            "| attempt | phase | control | ticks | reward (mm) | best (mm) | energy (J) "
+            "| tracking MSE (deg^2) | tracking RMSE (rad) | correction RMS (rad/s) | sigma | near limit |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
         ]
         for a in summary["attempts"]:
             lines.append(
-                f"| {a['attempt']} | {a['phase']} | {a['ticks']} | {fmt(a['reward_mm'])} | "
+                f"| {a['attempt']} | {a['phase']} | {a['control']} | {a['ticks']} | {fmt(a['reward_mm'])} | "
                 f"{fmt(a['best_reward_mm'])} | {fmt(a['energy_j'])} | {fmt(a['tracking_mse_deg2'])} | "
-                f"{fmt(a['sigma'])} | {fmt(a['near_limit_fraction'])} |"
+                f"{fmt(a['tracking_rmse_rad'])} | {fmt(a['correction_rms_rad_s'])} | {fmt(a['sigma'])} | "
+                f"{fmt(a['near_limit_fraction'])} |"
             )
     return "\n".join(lines) + "\n"
 
@@ -198,6 +199,9 @@ def _attempt_summary(a: AttemptData, best: float, limits: FloatArray | None) -> 
         "best_reward_mm": best,
         "energy_j": a.energy_j,
         "tracking_mse_deg2": a.tracking_mse_deg2,
+        "tracking_rmse_rad": a.tracking_rmse_rad,
+        "control": a.control,
+        "correction_rms_rad_s": a.correction_rms_rad_s,
         "sigma": a.end.sigma if a.end is not None else float("nan"),
         "features": a.start.features.tolist(),
         "near_limit_fraction": (
