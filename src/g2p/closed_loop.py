@@ -8,8 +8,9 @@ error e = desired - measured feeds a PI term that is added to the desired veloci
     velocity input = desired velocity + P e + I * integral(e dt) + V (desired velocity - measured velocity)
 
 per joint, while the desired angles and accelerations are fed unchanged. The follow-up's law is V = 0; the
-velocity term V is this project's addition: on the simulated leg the angle terms alone make tracking worse,
-the velocity term halves the error (docs/RESULTS.md, "Closed loop"). `TrajectoryTracker` does that for one
+velocity term V is this project's addition: on the simulated leg the follow-up's angle terms make tracking
+worse than open loop, while the velocity term with the integral cuts the error by about 3.5 (docs/ALGORITHM.md,
+"Closed loop"; docs/RESULTS.md). `TrajectoryTracker` does that for one
 trajectory, in numpy only (the map's forward pass, no torch), so that the rig's own tick loop runs it: the
 simulator's and the hardware driver's (g2p_ros.rig_server), and `g2p.rig.PlantRig` in-process.
 
@@ -57,26 +58,32 @@ class ControlMode(str, enum.Enum):
 
 @dataclass(frozen=True)
 class FeedbackConfig:
-    """The PI correction of the map's velocity input (defaults: the authors' follow-up).
+    """The correction of the map's velocity input.
+
+    The defaults are the best of a sweep on the simulated leg in the air, without delay
+    (benchmarks/bench_closed_loop.py --experiments sweep; docs/ALGORITHM.md, "Closed loop"): no
+    proportional term, the integral, and the velocity term. The follow-up's gains are
+    `FeedbackConfig(p_gain_per_s=(10, 15), i_gain_per_s2=(2, 6), velocity_gain=(0, 0))`; on the simulated
+    leg they track worse than open loop.
 
     Attributes:
         p_gain_per_s: proportional gain per joint (proximal, distal): rad/s of velocity input per rad of
-            angle error (1/s). The follow-up's [10, 15].
+            angle error (1/s); in [0, 100]. The follow-up's [10, 15].
         i_gain_per_s2: integral gain per joint: rad/s of velocity input per rad*s of integrated error
-            (1/s^2). The follow-up's [2, 6].
+            (1/s^2); in [0, 100]. The follow-up's [2, 6].
         velocity_gain: velocity-error gain per joint: rad/s of velocity input per rad/s of velocity error
-            (dimensionless). 0 in the follow-up.
+            (dimensionless); in [0, 20]. 0 in the follow-up.
         integral_limit_rad_s: bound on each joint's integrated error, |integral(e dt)| (rad*s): the
-            transition from rest must not wind the integral up.
+            transition from rest must not wind the integral up; in (0, 10].
         correction_limit_rad_s: bound on each joint's correction |P e + I integral| (rad/s): keeps the map's
-            input near the range it was fitted on.
+            input near the range it was fitted on; in (0, 50].
         delay_ticks: extra ticks between a measurement and its use, for experiments on sensory delay
-            (0 = the latest measurement; 4 ticks = 51 ms at 78 Hz).
+            (0 = the latest measurement; 4 ticks = 51 ms at 78 Hz); in [0, 78].
     """
 
-    p_gain_per_s: tuple[float, float] = (10.0, 15.0)
-    i_gain_per_s2: tuple[float, float] = (2.0, 6.0)
-    velocity_gain: tuple[float, float] = (0.0, 0.0)
+    p_gain_per_s: tuple[float, float] = (0.0, 0.0)
+    i_gain_per_s2: tuple[float, float] = (6.0, 9.0)
+    velocity_gain: tuple[float, float] = (3.0, 3.0)
     integral_limit_rad_s: float = 1.0
     correction_limit_rad_s: float = 10.0
     delay_ticks: int = 0
