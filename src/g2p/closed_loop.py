@@ -82,7 +82,7 @@ class FeedbackConfig:
     """
 
     p_gain_per_s: tuple[float, float] = (0.0, 0.0)
-    i_gain_per_s2: tuple[float, float] = (6.0, 9.0)
+    i_gain_per_s2: tuple[float, float] = (4.0, 6.0)
     velocity_gain: tuple[float, float] = (3.0, 3.0)
     integral_limit_rad_s: float = 1.0
     correction_limit_rad_s: float = 10.0
