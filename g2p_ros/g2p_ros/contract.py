@@ -14,6 +14,7 @@ MOTOR_POWER = "motor_power"
 APPLIED_ACTIVATION = "applied_activation"
 ACTIVATION_CMD = "activation_cmd"
 RUN_ACTIVATIONS = "run_activations"
+RUN_TRAJECTORY = "run_trajectory"
 RESET = "reset"
 # What the rig publishes every tick.
 RIG_SAMPLE_TOPICS = (JOINT_STATES, TREADMILL, MOTOR_POWER, APPLIED_ACTIVATION)
