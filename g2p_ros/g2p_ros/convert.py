@@ -1,8 +1,14 @@
-"""Conversion between the rig contract's messages and the core's sample types, in one place."""
+"""Conversion between the rig contract's messages and the core's types, in one place.
+
+Tick samples and recordings (the rig topics, RigSamples), inverse maps (InverseMapWeights' arrays, the
+g2p.inverse_map format) and closed-loop trajectories (RunTrajectory goals).
+"""
 
 from __future__ import annotations
 
+import math
 import struct
+from collections.abc import Mapping, Sequence
 from dataclasses import fields
 from typing import Any
 
@@ -13,8 +19,18 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
 from g2p.bags.interfaces import InterfaceLibrary, TypeRegistry, ament_share_dirs
+from g2p.closed_loop import FeedbackConfig, Trajectory
+from g2p.inverse_map import N_INPUTS, InverseMap, InverseMapFormatError
 from g2p.plant import JOINT_NAMES, N_JOINTS, N_MOTORS, Recording, TickSample
-from g2p_interfaces.msg import MotorActivation, MotorPower, RigSamples, Treadmill
+from g2p_interfaces.action import RunTrajectory
+from g2p_interfaces.msg import (
+    InverseMapWeights,
+    MotorActivation,
+    MotorPower,
+    NamedArray,
+    RigSamples,
+    Treadmill,
+)
 
 FRAME_ID = "leg"
 
@@ -196,3 +212,105 @@ def recording_from_msg(msg: RigSamples) -> Recording:
         power_w=rows(msg.power_w, N_MOTORS, "power_w"),
         energy_j=rows(msg.energy_j, N_MOTORS, "energy_j"),
     )
+
+
+# Inverse maps -------------------------------------------------------------------------------------------
+
+
+def map_weights_arrays(arrays: Mapping[str, np.ndarray]) -> list[NamedArray]:
+    """InverseMapWeights.arrays from `InverseMap.to_arrays()`.
+
+    Every named array but `format_version`, which the message carries in its own field
+    (`int(arrays["format_version"][0])`).
+
+    Args:
+        arrays: name -> array, as `InverseMap.to_arrays()` returns them (not modified).
+    """
+    return [
+        NamedArray(name=name, shape=list(np.shape(value)), data=np.asarray(value, dtype=np.float64).ravel())
+        for name, value in arrays.items()
+        if name != "format_version"
+    ]
+
+
+def map_from_weights(
+    arrays: Sequence[NamedArray], format_version: int, source: str = "InverseMapWeights"
+) -> InverseMap:
+    """The inverse map of InverseMapWeights' `arrays` and `format_version` (numpy only: no torch).
+
+    Args:
+        arrays: the named arrays, row-major.
+        format_version: the message's format version.
+        source: what the arrays came from, for error messages.
+
+    Raises:
+        InverseMapFormatError: an array's data does not fit its shape, a name appears twice, or
+            `InverseMap.from_arrays` refuses them (wrong version, names, shapes, non-finite values).
+    """
+    named: dict[str, np.ndarray] = {}
+    for array in arrays:
+        name = str(array.name)
+        data = np.asarray(array.data, dtype=np.float64)
+        shape = tuple(int(n) for n in array.shape)
+        if math.prod(shape) != data.size:
+            raise InverseMapFormatError(f"{source}: {name} has shape {list(shape)} but {data.size} values")
+        if name in named:
+            raise InverseMapFormatError(f"{source}: {name} appears twice")
+        named[name] = data.reshape(shape)
+    named["format_version"] = np.array([float(format_version)])
+    return InverseMap.from_arrays(named, source=source)
+
+
+def inverse_map_weights_msg(inverse_map: InverseMap) -> InverseMapWeights:
+    """The map as InverseMapWeights (format_version and arrays; the run's fields left empty)."""
+    arrays = inverse_map.to_arrays()
+    return InverseMapWeights(
+        format_version=int(arrays["format_version"][0]), arrays=map_weights_arrays(arrays)
+    )
+
+
+# Closed-loop trajectories ---------------------------------------------------------------------------------
+
+
+def trajectory_goal(trajectory: Trajectory) -> RunTrajectory.Goal:
+    """The run_trajectory goal that plays `trajectory`."""
+    fb = trajectory.feedback
+    return RunTrajectory.Goal(
+        desired=np.asarray(trajectory.desired, dtype=np.float64).ravel(),
+        inverse_map=inverse_map_weights_msg(trajectory.inverse_map),
+        p_gain_per_s=np.asarray(fb.p_gain_per_s, dtype=np.float64),
+        i_gain_per_s2=np.asarray(fb.i_gain_per_s2, dtype=np.float64),
+        velocity_gain=np.asarray(fb.velocity_gain, dtype=np.float64),
+        integral_limit_rad_s=float(fb.integral_limit_rad_s),
+        correction_limit_rad_s=float(fb.correction_limit_rad_s),
+        delay_ticks=int(fb.delay_ticks),
+        lead_ticks=int(trajectory.lead_ticks),
+    )
+
+
+def trajectory_from_goal(goal: RunTrajectory.Goal) -> Trajectory:
+    """The trajectory a run_trajectory goal asks for, validated as the rig plays it.
+
+    Raises:
+        ValueError: the desired kinematics are not N x 6 finite values (N >= 1), or the lead is outside
+            [0, N).
+        g2p.config.ConfigError: (a ValueError) a feedback setting outside its documented range; the message
+            names the field.
+        InverseMapFormatError: (a ValueError) the map's weights (see `map_from_weights`).
+    """
+    n = len(goal.desired)
+    if n == 0 or n % N_INPUTS:
+        raise ValueError(f"desired kinematics: {n} values, not a positive multiple of {N_INPUTS}")
+    desired = np.asarray(goal.desired, dtype=np.float64).reshape(-1, N_INPUTS)
+    feedback = FeedbackConfig(
+        p_gain_per_s=tuple(float(v) for v in goal.p_gain_per_s),
+        i_gain_per_s2=tuple(float(v) for v in goal.i_gain_per_s2),
+        velocity_gain=tuple(float(v) for v in goal.velocity_gain),
+        integral_limit_rad_s=float(goal.integral_limit_rad_s),
+        correction_limit_rad_s=float(goal.correction_limit_rad_s),
+        delay_ticks=int(goal.delay_ticks),
+    )
+    inverse_map = map_from_weights(
+        goal.inverse_map.arrays, int(goal.inverse_map.format_version), "inverse_map"
+    )
+    return Trajectory(desired, inverse_map, feedback, int(goal.lead_ticks))

@@ -1,10 +1,13 @@
 """The rig contract served over ROS 2 for any plant: the simulator and the hardware driver share it.
 
-One tick loop, in its own thread, decides each tick's activation (a running `run_activations` sequence,
-else the latest `activation_cmd` through the watchdog, else baseline) and steps the plant; a publisher
-thread publishes each tick's four messages with one shared stamp, in order, while the loop steps the next
-tick (MuJoCo steps without the GIL, so stepping and publishing overlap). A sequence or reset is reported
-done only once its last tick is published. Executor callbacks only hand work to the loop.
+One tick loop, in its own thread, decides each tick's activation (the next row of a running
+`run_activations` sequence, or of a running `run_trajectory`, decided by the core's
+`g2p.closed_loop.TrajectoryTracker` from the previous tick's sample; else the latest `activation_cmd`
+through the watchdog, else baseline) and steps the plant; a publisher thread publishes each tick's four
+messages with one shared stamp, in order, while the loop steps the next tick (MuJoCo steps without the GIL,
+so stepping and publishing overlap). A sequence, trajectory or reset is reported done only once its last
+tick is published. Executor callbacks only validate goals and hand work to the loop; at most one goal of
+either action, or one reset, runs at a time.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -31,13 +35,14 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
+from g2p.closed_loop import TrajectoryTracker
 from g2p.config import require
-from g2p.plant import NOMINAL_TICK_HZ, Plant, Recording, TickSample
+from g2p.plant import N_JOINTS, NOMINAL_TICK_HZ, Plant, Recording, TickSample
 from g2p.safety import BASELINE_ACTIVATION, ActivationGate, InvalidActivation, check_activation_sequence
-from g2p_interfaces.action import RunActivations
+from g2p_interfaces.action import RunActivations, RunTrajectory
 from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
 from g2p_ros import contract
-from g2p_ros.convert import TickSerializer, rig_samples_msg, stamp_ns, time_from_ns
+from g2p_ros.convert import TickSerializer, rig_samples_msg, stamp_ns, time_from_ns, trajectory_from_goal
 
 
 class Pacing(enum.Enum):
@@ -48,7 +53,7 @@ class Pacing(enum.Enum):
     PLANT = "plant"
     """Hardware: `plant.step` itself blocks until the tick's absolute deadline."""
     ON_DEMAND = "on_demand"
-    """Fast simulation: ticks only when there is work (a sequence, or one tick per command), unpaced."""
+    """Fast simulation: ticks only when there is work (a goal, or one tick per command), unpaced."""
 
 
 @dataclass(frozen=True)
@@ -58,7 +63,7 @@ class RigServerConfig:
     Attributes:
         watchdog_ticks: ticks without a valid activation_cmd after which the motors drop to baseline.
         baseline_activation: activation always applied at least (dimensionless, the paper's 15%).
-        feedback_period_s: wall time between run_activations feedback messages (s).
+        feedback_period_s: wall time between run_activations and run_trajectory feedback messages (s).
         diagnostics_period_ticks: ticks between /diagnostics messages (78 = about 1 s of rig time).
         log_period_s: minimum wall time between two warnings about rejected or ignored commands (s).
         fast_max_real_time_factor: in fast simulation (on-demand pacing), the most simulated seconds per
@@ -97,13 +102,37 @@ class RigServerConfig:
 
 @dataclass
 class _Job:
-    """A run_activations sequence being played by the loop."""
+    """A goal being played by the loop.
 
-    activations: np.ndarray
+    Either a run_activations sequence (`activations`) or a run_trajectory (`tracker`, which decides each
+    tick's activation from the previous tick's sample).
+    """
+
+    activations: np.ndarray | None = None
+    tracker: TrajectoryTracker | None = None
     samples: list[TickSample] = field(default_factory=list)
     cancel: bool = False
     error: str = ""
     done: threading.Event = field(default_factory=threading.Event)
+
+    @property
+    def ticks_total(self) -> int:
+        if self.tracker is not None:
+            return len(self.tracker)
+        return 0 if self.activations is None else len(self.activations)
+
+    def next_activation(self) -> np.ndarray:
+        """The coming tick's activation, checked as a sequence's rows are (finite, in [0, 1]).
+
+        Raises:
+            ValueError: closed loop: a non-finite measurement, or the map gave no valid activation.
+        """
+        k = len(self.samples)
+        if self.tracker is None:
+            assert self.activations is not None
+            return self.activations[k]  # checked whole when the goal arrived
+        activation = self.tracker.next_activation(self.samples[-1] if k else None)
+        return check_activation_sequence(activation[np.newaxis])[0]
 
 
 @dataclass(frozen=True)
@@ -214,6 +243,15 @@ class RigServer:
             cancel_callback=self._on_cancel,
             callback_group=group,
         )
+        self._trajectory_action = ActionServer(
+            node,
+            RunTrajectory,
+            contract.action_name(node, contract.RUN_TRAJECTORY),
+            execute_callback=self._execute_trajectory,
+            goal_callback=self._on_trajectory_goal,
+            cancel_callback=self._on_cancel,
+            callback_group=group,
+        )
         self._srv_reset = node.create_service(Trigger, contract.RESET, self._on_reset, callback_group=group)
 
     # Life cycle ------------------------------------------------------------------------------------
@@ -231,7 +269,7 @@ class RigServer:
         self._thread.start()
 
     def stop(self) -> None:
-        """Stop the loop, abort any sequence and leave the plant at baseline."""
+        """Stop the loop, abort any sequence or trajectory and leave the plant at baseline."""
         with self._cv:
             self._running = False
             if self._job is not None:
@@ -277,6 +315,7 @@ class RigServer:
         """Stop and destroy the ROS entities this server created."""
         self.stop()
         self._action.destroy()
+        self._trajectory_action.destroy()
         for entity in (
             *self._sample_publishers,
             self._pub_clock,
@@ -305,7 +344,7 @@ class RigServer:
                 self._ignored_commands += 1
                 self._warn(
                     "ignored",
-                    "activation_cmd ignored while a run_activations sequence plays "
+                    "activation_cmd ignored while a run_activations or run_trajectory goal plays "
                     f"({self._ignored_commands} so far)",
                 )
                 return
@@ -338,9 +377,23 @@ class RigServer:
         except InvalidActivation as err:
             self._log.warning(f"run_activations goal rejected: {err}")
             return GoalResponse.REJECT
+        return self._reserve(contract.RUN_ACTIVATIONS)
+
+    def _on_trajectory_goal(self, goal: RunTrajectory.Goal) -> GoalResponse:
+        # ROS actions carry no reason for a rejection: this log line is it (RigClient checks the same
+        # before sending, and raises with the reason).
+        try:
+            trajectory_from_goal(goal)
+        except ValueError as err:  # ConfigError, InverseMapFormatError, a wrong shape or lead
+            self._log.warning(f"run_trajectory goal rejected: {err}")
+            return GoalResponse.REJECT
+        return self._reserve(contract.RUN_TRAJECTORY)
+
+    def _reserve(self, action: str) -> GoalResponse:
+        """Accept a valid goal unless a goal of either action or a reset is in progress."""
         with self._cv:
             if self._goal_reserved or self._reset is not None:
-                self._log.warning("run_activations goal rejected: another sequence or a reset is in progress")
+                self._log.warning(f"{action} goal rejected: another sequence or a reset is in progress")
                 return GoalResponse.REJECT
             self._goal_reserved = True
         return GoalResponse.ACCEPT
@@ -352,15 +405,41 @@ class RigServer:
         return CancelResponse.ACCEPT
 
     def _execute(self, goal_handle: ServerGoalHandle) -> RunActivations.Result:
-        job = _Job(np.asarray(goal_handle.request.activation, dtype=np.float64).reshape(-1, 3))
+        job = _Job(activations=np.asarray(goal_handle.request.activation, dtype=np.float64).reshape(-1, 3))
+        samples = self._play(goal_handle, job, RunActivations.Feedback())
+        return RunActivations.Result(samples=self._samples_msg(samples), message=self._end(goal_handle, job))
+
+    def _execute_trajectory(self, goal_handle: ServerGoalHandle) -> RunTrajectory.Result:
+        job = _Job()
+        try:
+            job.tracker = TrajectoryTracker(
+                trajectory_from_goal(goal_handle.request), 1.0 / self._plant.tick_hz
+            )
+        except ValueError as err:  # validated when it arrived: cannot happen
+            job.error = f"invalid goal: {err}"
+            job.done.set()
+        samples = self._play(goal_handle, job, RunTrajectory.Feedback())
+        correction = (
+            job.tracker.correction_rad_s[: len(samples)]
+            if job.tracker is not None
+            else np.zeros((0, N_JOINTS))
+        )
+        return RunTrajectory.Result(
+            samples=self._samples_msg(samples),
+            correction_rad_s=correction.ravel(),
+            message=self._end(goal_handle, job),
+        )
+
+    def _play(self, goal_handle: ServerGoalHandle, job: _Job, feedback: Any) -> list[TickSample]:
+        """Hand `job` to the loop, send feedback every period until it ends; returns the ticks played."""
         with self._cv:
-            if not self._running:
+            if not self._running and not job.done.is_set():
                 job.error = "rig is not running"
                 job.done.set()
-            else:
+            if not job.done.is_set():
                 self._job = job
                 self._cv.notify_all()
-        feedback = RunActivations.Feedback(ticks_total=len(job.activations))
+        feedback.ticks_total = job.ticks_total
         while True:  # feedback every period while the loop plays, and once at the end
             finished = job.done.wait(self._config.feedback_period_s)
             feedback.ticks_done = len(job.samples)
@@ -369,19 +448,22 @@ class RigServer:
                 break
         with self._cv:
             self._goal_reserved = False
-        samples = list(job.samples)
+        return list(job.samples)
+
+    def _samples_msg(self, samples: list[TickSample]) -> Any:
         stamps = np.array([stamp_ns(self._stamp(sample.t_s)) for sample in samples], dtype=np.int64)
-        result = RunActivations.Result(
-            samples=rig_samples_msg(Recording.from_samples(samples), stamps),
-            message=job.error or ("cancelled" if job.cancel else ""),
-        )
+        return rig_samples_msg(Recording.from_samples(samples), stamps)
+
+    @staticmethod
+    def _end(goal_handle: ServerGoalHandle, job: _Job) -> str:
+        """Set the goal's final state; returns the result's message."""
         if job.cancel and goal_handle.is_cancel_requested:
             goal_handle.canceled()
         elif job.error or job.cancel:
             goal_handle.abort()
         else:
             goal_handle.succeed()
-        return result
+        return job.error or ("cancelled" if job.cancel else "")
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         req = _ResetRequest()
@@ -389,7 +471,7 @@ class RigServer:
             if self._goal_reserved or self._reset is not None:
                 response.success, response.message = (
                     False,
-                    "a run_activations sequence or reset is in progress",
+                    "a run_activations sequence, run_trajectory or reset is in progress",
                 )
                 return response
             if not self._running:
@@ -422,7 +504,7 @@ class RigServer:
                     self._do_reset(reset)
                     continue
                 sample = self._plant.step(activation)
-            except Exception as err:  # the plant failed: drop to baseline, fail the sequence, report
+            except Exception as err:  # the plant failed: drop to baseline, fail the goal, report
                 self._fault(err, job)
                 continue
             self._pace(sample.t_s)
@@ -439,11 +521,17 @@ class RigServer:
         return self._job is not None or self._reset is not None or bool(self._lockstep)
 
     def _next_activation(self) -> tuple[_Job | None, np.ndarray]:
-        """The sequence being played, if any, and the coming tick's activation (lock held)."""
+        """The sequence or trajectory being played, if any, and the coming tick's activation (lock held)."""
         job = self._job
         if job is not None and not job.cancel:
-            return job, job.activations[len(job.samples)]
-        if job is not None:  # cancelled: end the sequence now, baseline from this tick on
+            try:
+                return job, job.next_activation()
+            except ValueError as err:  # closed loop: no valid activation; end it, baseline from this tick
+                job.error = f"no valid activation for tick {len(job.samples)}: {err}"
+                self._log.error(f"run_trajectory aborted: {job.error}")
+                self._finish(job)
+                return None, self._gate.stop()
+        if job is not None:  # cancelled: end the goal now, baseline from this tick on
             self._finish(job)
             return None, self._gate.stop()
         if self._lockstep:
@@ -455,17 +543,17 @@ class RigServer:
         if self._pacing is not Pacing.ON_DEMAND:
             return False
         if job is not None:
-            return len(job.samples) + 1 == len(job.activations)
+            return len(job.samples) + 1 == job.ticks_total
         return not self._lockstep
 
     def _advance(self, job: _Job, sample: TickSample) -> Callable[[], None] | None:
-        """Add the tick to the sequence; after its last tick, what ends it once that tick is published."""
+        """Add the tick to the goal; after its last tick, what ends it once that tick is published."""
         job.samples.append(sample)
-        if len(job.samples) < len(job.activations):
+        if len(job.samples) < job.ticks_total:
             return None
         with self._cv:
             self._release(job)
-            self._gate.stop()  # the sequence is over: baseline until the next command
+            self._gate.stop()  # the goal is over: baseline until the next command
         return job.done.set
 
     def _release(self, job: _Job) -> None:
