@@ -10,8 +10,15 @@ from builtin_interfaces.msg import Time
 from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Header
 
-from g2p_interfaces.action import Attempt, Babble, Learn, RunActivations, Track
-from g2p_interfaces.msg import MotorActivation, MotorPower, RigSamples, Treadmill
+from g2p_interfaces.action import Attempt, Babble, Learn, RunActivations, RunTrajectory, Track
+from g2p_interfaces.msg import (
+    InverseMapWeights,
+    MotorActivation,
+    MotorPower,
+    NamedArray,
+    RigSamples,
+    Treadmill,
+)
 
 HEADER = Header(stamp=Time(sec=12, nanosec=345_678_901), frame_id="leg")
 
@@ -41,6 +48,23 @@ MESSAGES = [
     RunActivations.Goal(activation=np.linspace(0, 1, 30)),
     RunActivations.Result(samples=_samples(7), message="cancelled"),
     RunActivations.Feedback(ticks_done=5, ticks_total=10),
+    RunTrajectory.Goal(
+        desired=np.linspace(-1, 1, 6 * 80),
+        inverse_map=InverseMapWeights(
+            header=HEADER,
+            format_version=1,
+            arrays=[NamedArray(name="w_out", shape=[3, 2], data=np.linspace(-1, 1, 6))],
+        ),
+        p_gain_per_s=[10.0, 15.0],
+        i_gain_per_s2=[2.0, 6.0],
+        velocity_gain=[0.3, 0.0],
+        integral_limit_rad_s=1.0,
+        correction_limit_rad_s=10.0,
+        delay_ticks=4,
+        lead_ticks=-3,
+    ),
+    RunTrajectory.Result(samples=_samples(7), correction_rad_s=np.linspace(-2, 2, 14), message="cancelled"),
+    RunTrajectory.Feedback(ticks_done=5, ticks_total=10),
     Babble.Goal(duration_s=300.0),
     Babble.Result(sample_count=23400, validation_rmse=0.05),
     Babble.Feedback(progress=0.5, samples_done=11700),

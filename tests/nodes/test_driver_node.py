@@ -24,23 +24,16 @@ from diagnostic_msgs.msg import DiagnosticArray
 from lifecycle_msgs.msg import State, Transition, TransitionEvent
 from lifecycle_msgs.srv import ChangeState, GetState
 from rclpy.action import ActionClient
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-from g2p.hardware import WiringConfig
 from g2p_interfaces.action import RunActivations
 from g2p_interfaces.msg import MotorActivation
 from g2p_ros import contract
 from g2p_ros.convert import recording_from_msg
 from g2p_ros.params import CONFIG_QOS
+from tests.nodes.rig_nodes import BASELINE, DEEP_QOS, at_baseline, is_off, outputs, start_driver
 from tests.nodes.rosproc import NodeProcess, RosPeer, wait_until
-
-BASELINE = 0.15
-PWM = WiringConfig().pwm  # the installed wiring.yaml uses the default map: 10 % .. 90 %
-BASELINE_DUTY = PWM.duty(BASELINE)
-DUTY_STEP = 1.0 / 4096  # PCA9685 resolution
-DEEP_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
 
 
 class LifecyclePeer(RosPeer):
@@ -118,26 +111,6 @@ class LifecyclePeer(RosPeer):
                     if status.name.endswith(": hardware"):
                         return {kv.key: kv.value for kv in status.values}
         return None
-
-
-def outputs(state_dir: Path) -> dict[str, Any]:
-    """What the motor drivers see, as the fake rig last wrote it."""
-    return json.loads((state_dir / "outputs.json").read_text())  # type: ignore[no-any-return]
-
-
-def at_baseline(out: dict[str, Any]) -> bool:
-    return bool(out["enabled"]) and all(abs(d - BASELINE_DUTY) <= DUTY_STEP for d in out["duty"])
-
-
-def is_off(out: dict[str, Any]) -> bool:
-    return out["enabled"] is False and out["duty"] == [0.0, 0.0, 0.0] and out["activation"] == [0.0] * 3
-
-
-def start_driver(log_dir: Path, state_dir: Path, *params: str) -> NodeProcess:
-    args = ["--ros-args", "-p", "fake_devices:=true", "-p", f"fake.state_dir:={state_dir}"]
-    for p in params:
-        args += ["-p", p]
-    return NodeProcess("g2p_driver", "driver", args, log_dir)
 
 
 @pytest.fixture

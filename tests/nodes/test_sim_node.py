@@ -3,97 +3,24 @@
 from __future__ import annotations
 
 import math
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
 from action_msgs.msg import GoalStatus
-from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.action import ActionClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from g2p.plant import NOMINAL_TICK_HZ
 from g2p_interfaces.action import RunActivations
-from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
+from g2p_interfaces.msg import MotorActivation
 from g2p_ros import contract
 from g2p_ros.convert import recording_from_msg
-from tests.nodes.rosproc import NodeProcess, RosPeer, wait_until
-
-BASELINE = 0.15
-# Like the recorder: a reader history deep enough to absorb this process's pauses in fast simulation.
-DEEP_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
-
-
-class RigPeer(RosPeer):
-    """The test's side of the rig contract: every rig topic collected, the action and reset clients."""
-
-    def __init__(self) -> None:
-        super().__init__("rig_peer")
-        self.lock = threading.Lock()
-        self.received: dict[str, list[object]] = {
-            name: []
-            for name in (
-                contract.JOINT_STATES,
-                contract.TREADMILL,
-                contract.MOTOR_POWER,
-                contract.APPLIED_ACTIVATION,
-            )
-        }
-        self.diagnostics: list[DiagnosticArray] = []
-        for name, msg_type in (
-            (contract.JOINT_STATES, JointState),
-            (contract.TREADMILL, Treadmill),
-            (contract.MOTOR_POWER, MotorPower),
-            (contract.APPLIED_ACTIVATION, MotorActivation),
-        ):
-            self.node.create_subscription(msg_type, name, self._collector(name), DEEP_QOS)
-        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append, 10)
-        self.cmd = self.node.create_publisher(MotorActivation, contract.ACTIVATION_CMD, contract.COMMAND_QOS)
-        self.action = ActionClient(self.node, RunActivations, contract.RUN_ACTIVATIONS)
-        self.reset = self.node.create_client(Trigger, contract.RESET)
-        self.start()
-
-    def destroy_entities(self) -> None:
-        self.action.destroy()
-
-    def _collector(self, name: str):
-        def collect(msg: Any) -> None:
-            # The fast rig's start-up rest sample (stamp 0) reaches this peer only when its subscriptions
-            # matched in time, on some topics and not others: every test ignores it.
-            if msg.header.stamp.sec == 0 and msg.header.stamp.nanosec == 0:
-                return
-            with self.lock:
-                self.received[name].append(msg)
-
-        return collect
-
-    def applied(self) -> list[list[float]]:
-        with self.lock:
-            return [list(m.activation) for m in self.received[contract.APPLIED_ACTIVATION]]
-
-    def wait_for_rig(self) -> None:
-        assert self.action.wait_for_server(timeout_sec=30.0), "the rig's run_activations never appeared"
-        assert self.reset.wait_for_service(timeout_sec=30.0)
-        wait_until(
-            lambda: self.cmd.get_subscription_count() > 0, 30.0, "the rig to subscribe to activation_cmd"
-        )
-
-    def play(self, activations: np.ndarray, feedback: list[object] | None = None):
-        goal = RunActivations.Goal(activation=np.asarray(activations, dtype=np.float64).ravel())
-        handle = self.wait(
-            self.action.send_goal_async(
-                goal, feedback_callback=(feedback.append if feedback is not None else None)
-            ),
-            30.0,
-        )
-        return handle
+from tests.nodes.rig_nodes import BASELINE, RigPeer, start_sim
+from tests.nodes.rosproc import NodeProcess, wait_until
 
 
 def stamp_s(msg: object) -> float:
@@ -111,13 +38,6 @@ def stamps_s(peer: RigPeer, topic: str) -> np.ndarray:
 @pytest.fixture
 def log_dir(tmp_path: Path) -> Path:
     return tmp_path
-
-
-def start_sim(log_dir: Path, *params: str) -> NodeProcess:
-    args = ["--ros-args"]
-    for p in params:
-        args += ["-p", p]
-    return NodeProcess("g2p_sim", "sim", args, log_dir)
 
 
 @pytest.fixture
