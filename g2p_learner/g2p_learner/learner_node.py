@@ -56,8 +56,9 @@ from g2p.rig import (
 from g2p.search import SearchConfig
 from g2p.seeds import seed_streams
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
-from g2p_interfaces.msg import InverseMapWeights, LearnerEvent, NamedArray
+from g2p_interfaces.msg import InverseMapWeights, LearnerEvent
 from g2p_ros.contract import RIG_SAMPLE_TOPICS, ServerWatch, action_name, wait_all
+from g2p_ros.convert import inverse_map_weights_msg
 from g2p_ros.params import CONFIG_QOS, config_as_dict, declare_config, publish_config
 from g2p_ros.rig_client import RigClient
 
@@ -717,18 +718,13 @@ class LearnerNode(Node):
 
     def _publish_map(self, fit: FitReport | None) -> None:
         """Publish the current map; `fit` is the fit or refinement that made it (None: restored)."""
-        arrays = self.learner.inverse_map.to_arrays()
-        self._maps.publish(
-            InverseMapWeights(
-                header=Header(stamp=self.get_clock().now().to_msg()),
-                run_id=self.run_id,
-                refinement=self.learner.refinements,
-                format_version=int(arrays.pop("format_version")[0]),
-                arrays=[NamedArray(name=k, shape=list(v.shape), data=v.ravel()) for k, v in arrays.items()],
-                training_samples=len(self.learner.dataset) if fit is None else fit.n_train + fit.n_validation,
-                validation_rmse=math.nan if fit is None else fit.validation_rmse,
-            )
-        )
+        msg = inverse_map_weights_msg(self.learner.inverse_map)
+        msg.header = Header(stamp=self.get_clock().now().to_msg())
+        msg.run_id = self.run_id
+        msg.refinement = self.learner.refinements
+        msg.training_samples = len(self.learner.dataset) if fit is None else fit.n_train + fit.n_validation
+        msg.validation_rmse = math.nan if fit is None else fit.validation_rmse
+        self._maps.publish(msg)
 
 
 class _BabblingSegments:

@@ -9,9 +9,9 @@ error e = desired - measured feeds a PI term that is added to the desired veloci
 
 per joint, while the desired angles and accelerations are fed unchanged. The follow-up's law is V = 0; the
 velocity term V is this project's addition: on the simulated leg the follow-up's angle terms make tracking
-worse than open loop, while the velocity term with the integral cuts the error by about 3.5 (docs/ALGORITHM.md,
-"Closed loop"; docs/RESULTS.md). `TrajectoryTracker` does that for one
-trajectory, in numpy only (the map's forward pass, no torch), so that the rig's own tick loop runs it: the
+worse than open loop, while the velocity term with the integral cuts the error by about 3.5
+(docs/ALGORITHM.md, "Closed loop"; docs/RESULTS.md). `TrajectoryTracker` does that for one trajectory,
+in numpy only (the map's forward pass, no torch), so that the rig's own tick loop runs it: the
 simulator's and the hardware driver's (g2p_ros.rig_server), and `g2p.rig.PlantRig` in-process.
 
 Timing, tick by tick (k = 0 .. N-1; row j of a recording is the state at the end of tick j):
@@ -75,8 +75,8 @@ class FeedbackConfig:
             (dimensionless); in [0, 20]. 0 in the follow-up.
         integral_limit_rad_s: bound on each joint's integrated error, |integral(e dt)| (rad*s): the
             transition from rest must not wind the integral up; in (0, 10].
-        correction_limit_rad_s: bound on each joint's correction |P e + I integral| (rad/s): keeps the map's
-            input near the range it was fitted on; in (0, 50].
+        correction_limit_rad_s: bound on each joint's whole correction (rad/s), the velocity term
+            included: keeps the map's input near the range it was fitted on; in (0, 50].
         delay_ticks: extra ticks between a measurement and its use, for experiments on sensory delay
             (0 = the latest measurement; 4 ticks = 51 ms at 78 Hz); in [0, 78].
     """
