@@ -3,12 +3,14 @@ own processes, driven over ROS 2 actions by a client, in fast simulation."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import subprocess
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -17,8 +19,11 @@ from rclpy.action import ActionClient
 
 from g2p.bags import BagReader
 from g2p.bags.dataset import load_run, load_training_data
+from g2p.closed_loop import FeedbackConfig, Trajectory, TrajectoryTracker
 from g2p.inverse_map import InverseMap
 from g2p.learner import Learner, LearnerConfig
+from g2p.limit_cycle import LimitCycleConfig, attempt_kinematics
+from g2p.plant import TickSample
 from g2p.sim.config import DEFAULT_BELT_DRAG_N
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_interfaces.msg import MotorActivation
@@ -266,3 +271,62 @@ def test_bringup_stops_the_run_when_the_recorder_cannot_record(tmp_path: Path) -
     assert proc.returncode == 1, proc.stdout + proc.stderr
     assert "recorder exited" in proc.stderr
     assert "babbling" not in proc.stdout  # the learner never started its run
+
+
+def test_a_closed_loop_run_records_what_the_rig_decided_tick_by_tick(tmp_path: Path) -> None:
+    """`learner.control=closed` through the graph: the rig ran the loop, and the bag says so exactly.
+
+    Known answer: the rig's tracker, replayed in-process on the recorded joint states with the map the
+    learner had before each attempt, decides the recorded activations and corrections bit for bit.
+    """
+    bags = tmp_path / "bags"
+    proc = run_bringup(
+        tmp_path,
+        "--bags-dir",
+        str(bags),
+        "--run-id",
+        "closed-run",
+        "--set",
+        "learner.learner.control=closed",
+        "--set",
+        "learner.learner.babbling.duration_s=20.0",
+        "--set",
+        "learner.cycle.n_cycles=4",
+        "--set",
+        "learner.search.max_exploration_attempts=2",
+        "--set",
+        "learner.search.exploitation_attempts=1",
+        "--no-report",
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    run = load_run(bags / "closed-run")
+    config = run.configs["/leg/learner/config"]
+    assert config["learner"]["control"] == "closed"
+    feedback = FeedbackConfig(**_tuples(config["learner"]["feedback"]))
+    cycle = LimitCycleConfig(**_tuples(config["cycle"]))
+    lead = config["learner"]["preprocess"]["command_lead_ticks"]
+    assert len(run.attempts) >= 2
+    maps = {m.refinement: m for m in run.inverse_maps}
+    for attempt in run.attempts:
+        assert attempt.control == "closed" and attempt.correction_rad_s is not None
+        assert attempt.correction_rad_s.shape == (len(attempt.recording), 2)
+        assert np.any(attempt.correction_rad_s != 0)
+        snapshot = maps[attempt.attempt - 1]  # refined after every attempt: the map this one played
+        inverse_map = InverseMap.from_arrays(
+            {**snapshot.arrays, "format_version": np.array([float(snapshot.format_version)])}
+        )
+        assert attempt.end is not None
+        desired = attempt_kinematics(attempt.end.features, cycle)
+        tracker = TrajectoryTracker(Trajectory(desired, inverse_map, feedback, lead))
+        rec = attempt.recording
+        decided = [tracker.next_activation(None)]
+        for k in range(1, len(rec)):
+            measured = TickSample(*(getattr(rec, f.name)[k - 1] for f in dataclasses.fields(TickSample)))
+            decided.append(tracker.next_activation(measured))
+        np.testing.assert_array_equal(np.array(decided), rec.activation)
+        np.testing.assert_array_equal(tracker.correction_rad_s, attempt.correction_rad_s)
+
+
+def _tuples(config: dict[str, Any]) -> dict[str, Any]:
+    """A recorded configuration section with its lists as the tuples the dataclass takes."""
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in config.items()}
