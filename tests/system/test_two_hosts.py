@@ -26,8 +26,13 @@ from tests.twohost.graph import SHORT_RUN, HostProcess, TwoHostGraph, ros_params
 
 SEED = 0
 SILENCE_S = 2.0  # the learner's rig_silence_s (its default)
-# Seed 0 crosses 10 mm on its fifth attempt: 5 exploration and 4 exploitation attempts.
-RUN = {**SHORT_RUN, "learner.seed": str(SEED), "search.threshold_mm": "10.0"}
+# Seed 0 crosses 10 mm on its third attempt: 3 exploration and 6 exploitation attempts.
+RUN = {
+    **SHORT_RUN,
+    "learner.seed": str(SEED),
+    "search.threshold_mm": "10.0",
+    "search.exploitation_attempts": "6",
+}
 # A rig paced by the wall clock, like the hardware: babbling and attempts take their rig time. Any
 # reward crosses: 1 exploration and 2 exploitation attempts.
 REALTIME_RUN = {
@@ -249,7 +254,7 @@ def test_a_learner_killed_during_exploitation_resumes_bit_for_bit_from_the_bag(
     sim, recorder = rig_nodes(g, "-p", "time_mode:=fast", "-p", "rig.fast_max_real_time_factor:=3.0")
     learn_args = learner_args(RUN, sim_time=True)
     learner = g.node("ws", "g2p_learner", "learn", *learn_args)
-    learner.wait_for_attempt(6)  # exploitation since attempt 6
+    learner.wait_for_attempt(6)  # exploitation since attempt 4
     time.sleep(0.5)
     learner.stop(signal.SIGKILL)
     resumed = g.node("ws", "g2p_learner", "learn", "--resume", str(g.bag), *learn_args)
