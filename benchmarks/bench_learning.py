@@ -128,6 +128,7 @@ def treadmill(seed: int, setup: Setup = Setup()) -> dict[str, Any]:
         "exploitation_improvement_mm": result.best_reward_mm - at_cross,
         "rewards_mm": rewards,
         "energies_j": [r.outcome.energy_j for r in result.reports],
+        "tracking_rmse_rad": [r.outcome.tracking.rmse_rad for r in result.reports],
         "phases": [r.phase.value for r in result.reports],
         "fit_s": result.babbling_fit.seconds,
         "refine_s": [r.fit.seconds for r in result.reports if r.fit is not None],
