@@ -193,8 +193,15 @@ def test_a_partition_during_an_attempt_retries_it_once_the_link_returns(
     planned = len(retried.desired_position_rad)
     t, act = run.ticks.recording.t_s, run.ticks.recording.activation
     stamps = run.ticks.stamps_ns
-    lost_ticks = np.flatnonzero(stamps > first_start.stamp_ns)[:planned]
-    idle = (t > t[lost_ticks[-1]] + 0.05) & (t < retried.recording.t_s[0] - 0.05)
+    # The lost sequence is the retried one (same features, same map): find where the rig played it.
+    played = retried.recording.activation
+    lost_start = next(
+        k
+        for k in np.flatnonzero(stamps > first_start.stamp_ns)
+        if np.array_equal(act[k : k + planned], played)
+    )
+    assert t[lost_start] < retried.recording.t_s[0]  # the lost one, not the retry
+    idle = (t > t[lost_start + planned - 1]) & (t < retried.recording.t_s[0] - 0.05)
     assert idle.sum() > 10
     np.testing.assert_array_equal(act[idle], BASELINE_ACTIVATION)
     # The rig's data has no gap: the recorder beside it kept recording through the partition.
