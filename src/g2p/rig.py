@@ -103,17 +103,9 @@ class PlantRig:
     ) -> Recording:
         """Play the sequence on the plant, tick by tick."""
         seq = check_activation_sequence(activations)
-        samples = []
-        for k, row in enumerate(seq):
-            if cancel is not None and cancel.is_set():
-                self.plant.step(np.zeros(3))  # one tick at baseline, as the ROS rig does on cancel
-                raise RigCancelled(f"sequence cancelled after {k} of {len(seq)} ticks")
-            samples.append(self.plant.step(row))
-            if progress is not None and (k + 1) % self._progress_every == 0:
-                progress(k + 1, len(seq))
-        if progress is not None:
-            progress(len(seq), len(seq))
-        return Recording.from_samples(samples)
+        return Recording.from_samples(
+            self._ticks("sequence", len(seq), lambda k, _: seq[k], progress, cancel)
+        )
 
     def play_trajectory(
         self,
@@ -123,18 +115,35 @@ class PlantRig:
     ) -> TrackedRecording:
         """Play the trajectory on the plant in closed loop, tick by tick."""
         tracker = TrajectoryTracker(trajectory, 1.0 / self.plant.tick_hz)
+        samples = self._ticks(
+            "trajectory",
+            len(tracker),
+            lambda _, previous: tracker.next_activation(previous),
+            progress,
+            cancel,
+        )
+        return TrackedRecording(Recording.from_samples(samples), tracker.correction_rad_s)
+
+    def _ticks(
+        self,
+        what: str,
+        n: int,
+        decide: Callable[[int, TickSample | None], NDArray[np.float64]],
+        progress: ProgressCallback | None,
+        cancel: threading.Event | None,
+    ) -> list[TickSample]:
+        """Step the plant n ticks, tick k's activation decided from k and the previous tick's sample."""
         samples: list[TickSample] = []
-        n = len(tracker)
         for k in range(n):
             if cancel is not None and cancel.is_set():
-                self.plant.step(np.zeros(3))
-                raise RigCancelled(f"trajectory cancelled after {k} of {n} ticks")
-            samples.append(self.plant.step(tracker.next_activation(samples[-1] if samples else None)))
+                self.plant.step(np.zeros(3))  # one tick at baseline, as the ROS rig does on cancel
+                raise RigCancelled(f"{what} cancelled after {k} of {n} ticks")
+            samples.append(self.plant.step(decide(k, samples[-1] if samples else None)))
             if progress is not None and (k + 1) % self._progress_every == 0:
                 progress(k + 1, n)
         if progress is not None:
             progress(n, n)
-        return TrackedRecording(Recording.from_samples(samples), tracker.correction_rad_s)
+        return samples
 
 
 class RigBusy(RigError):
