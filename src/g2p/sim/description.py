@@ -1,0 +1,93 @@
+"""The leg's description (g2p.description) read from the compiled MuJoCo model the simulator runs."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from g2p.description import Joint, LegDescription, Link
+from g2p.sim.model import CARRIAGE_BODY, ModelError
+
+# Bodies of the three links, their joints, and the geoms drawn for them.
+_LINK_BODIES = ("thigh", "shank", "foot")
+_JOINTS = ("proximal", "distal")
+_PAD_GEOM = "footpad"
+_BELT_GEOM = "belt"
+_HINGE_AXIS = np.array([0.0, -1.0, 0.0])
+
+
+def _id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
+    found = int(mujoco.mj_name2id(model, kind, name))
+    if found < 0:
+        raise ModelError(f"model has no {kind.name.removeprefix('mjOBJ_').lower()} named {name!r}")
+    return found
+
+
+def _inertia_about_y(model: mujoco.MjModel, body: int) -> float:
+    """Moment of inertia of `body` about the y axis through its centre of mass (kg m^2)."""
+    rotation = np.zeros(9)
+    mujoco.mju_quat2Mat(rotation, model.body_iquat[body])
+    r = rotation.reshape(3, 3)
+    return float((r @ np.diag(model.body_inertia[body]) @ r.T)[1, 1])
+
+
+def _link(model: mujoco.MjModel, name: str, length_m: float, radius_m: float) -> Link:
+    body = _id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+    com = model.body_ipos[body]
+    return Link(
+        name=name,
+        length_m=length_m,
+        radius_m=radius_m,
+        mass_kg=float(model.body_mass[body]),
+        com_m=(float(com[0]), float(com[2])),
+        inertia_kg_m2=_inertia_about_y(model, body),
+    )
+
+
+def _below(model: mujoco.MjModel, child: str) -> float:
+    """How far the origin of body `child` lies straight below its parent's (m); the leg is planar."""
+    x, y, z = model.body_pos[_id(model, mujoco.mjtObj.mjOBJ_BODY, child)]
+    if abs(x) > 1e-9 or abs(y) > 1e-9 or z >= 0.0:
+        raise ModelError(f"body {child!r} must sit straight below its parent (0, 0, -length), got {(x, y, z)}")
+    return float(-z)
+
+
+def _link_radius(model: mujoco.MjModel, body_name: str) -> float:
+    """Radius of the first capsule or cylinder geom of a body: its visual thickness (m)."""
+    body = _id(model, mujoco.mjtObj.mjOBJ_BODY, body_name)
+    shapes = (int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_CYLINDER))
+    for g in range(model.ngeom):
+        if model.geom_bodyid[g] == body and model.geom_type[g] in shapes:
+            return float(model.geom_size[g][0])
+    raise ModelError(f"body {body_name!r} has no capsule or cylinder geom to draw it by")
+
+
+def leg_description(model: mujoco.MjModel) -> LegDescription:
+    """The description of a compiled leg model (g2p.sim.model.load_leg_model's `model`).
+
+    Raises:
+        ModelError: the model lacks a body, joint or geom the description needs, or is not planar.
+    """
+    joints = []
+    for name in _JOINTS:
+        jid = _id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if model.jnt_type[jid] != int(mujoco.mjtJoint.mjJNT_HINGE) or not np.allclose(
+            model.jnt_axis[jid], _HINGE_AXIS
+        ):
+            raise ModelError(f"joint {name!r} must be a hinge about -y (the leg is planar)")
+        lower, upper = model.jnt_range[jid] if model.jnt_limited[jid] else (-np.pi, np.pi)
+        joints.append(Joint(name, float(lower), float(upper)))
+    pad = _id(model, mujoco.mjtObj.mjOBJ_GEOM, _PAD_GEOM)
+    if model.geom_type[pad] != int(mujoco.mjtGeom.mjGEOM_CAPSULE):
+        raise ModelError(f"geom {_PAD_GEOM!r} must be a capsule along x")
+    belt = _id(model, mujoco.mjtObj.mjOBJ_GEOM, _BELT_GEOM)
+    carriage = _id(model, mujoco.mjtObj.mjOBJ_BODY, CARRIAGE_BODY)
+    return LegDescription(
+        hip_height_m=float(model.body_pos[carriage][2]),
+        thigh=_link(model, "thigh", _below(model, "shank"), _link_radius(model, "thigh")),
+        shank=_link(model, "shank", _below(model, "foot"), _link_radius(model, "shank")),
+        foot=_link(model, "foot", float(-model.geom_pos[pad][2]), float(model.geom_size[pad][0])),
+        pad_half_length_m=float(model.geom_size[pad][1]),
+        joints=(joints[0], joints[1]),
+        belt_half_width_m=float(model.geom_size[belt][1]),
+    )
