@@ -1,12 +1,23 @@
-"""The leg's description (g2p.description) read from the compiled MuJoCo model the simulator runs."""
+"""The leg's description (g2p.description) read from the compiled MuJoCo model the simulator runs.
+
+`python -m g2p.sim.description > src/g2p/models/leg.urdf` regenerates the packaged URDF (g2p.urdf) from the
+packaged model at the treadmill carriage height.
+"""
 
 from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from g2p.description import Joint, LegDescription, Link
-from g2p.sim.model import CARRIAGE_BODY, ModelError
+from g2p.sim.config import TREADMILL_CARRIAGE_HEIGHT_M, packaged_model_path
+from g2p.sim.model import CARRIAGE_BODY, ModelError, load_leg_model
+from g2p.urdf import leg_urdf
 
 # Bodies of the three links, their joints, and the geoms drawn for them.
 _LINK_BODIES = ("thigh", "shank", "foot")
@@ -48,7 +59,9 @@ def _below(model: mujoco.MjModel, child: str) -> float:
     """How far the origin of body `child` lies straight below its parent's (m); the leg is planar."""
     x, y, z = model.body_pos[_id(model, mujoco.mjtObj.mjOBJ_BODY, child)]
     if abs(x) > 1e-9 or abs(y) > 1e-9 or z >= 0.0:
-        raise ModelError(f"body {child!r} must sit straight below its parent (0, 0, -length), got {(x, y, z)}")
+        raise ModelError(
+            f"body {child!r} must sit straight below its parent (0, 0, -length), got {(x, y, z)}"
+        )
     return float(-z)
 
 
@@ -91,3 +104,26 @@ def leg_description(model: mujoco.MjModel) -> LegDescription:
         joints=(joints[0], joints[1]),
         belt_half_width_m=float(model.geom_size[belt][1]),
     )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Print the URDF of a leg model: `python -m g2p.sim.description > src/g2p/models/leg.urdf`."""
+    parser = argparse.ArgumentParser(
+        prog="python -m g2p.sim.description",
+        description="Print the URDF (robot_description) of the leg's MuJoCo model.",
+    )
+    parser.add_argument("--model", default="", help="MJCF file (default: the packaged g2p/models/leg.xml)")
+    parser.add_argument(
+        "--carriage-height-m",
+        type=float,
+        default=TREADMILL_CARRIAGE_HEIGHT_M,
+        help=f"height of the hip axis above the belt (m, default {TREADMILL_CARRIAGE_HEIGHT_M})",
+    )
+    args = parser.parse_args(argv)
+    path = Path(args.model) if args.model else packaged_model_path()
+    sys.stdout.write(leg_urdf(leg_description(load_leg_model(path, args.carriage_height_m).model)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
