@@ -58,9 +58,19 @@ def _origin(parent: ET.Element, xyz: str, rpy: str = "0 0 0") -> None:
     ET.SubElement(parent, "origin", xyz=xyz, rpy=rpy)
 
 
-def _visual(link: ET.Element, name: str, colour: str, xyz: str, rpy: str, shape: str, **size: str) -> None:
+def _visual(
+    link: ET.Element,
+    name: str,
+    colour: str,
+    shape: str,
+    size: dict[str, str],
+    x: float,
+    z: float,
+    rpy: str = "0 0 0",
+) -> None:
+    """A visual of `shape` with attributes `size`, centred at (x, 0, z) in the link's frame (m)."""
     visual = ET.SubElement(link, "visual", name=name)
-    _origin(visual, xyz, rpy)
+    _origin(visual, _xyz(x, 0.0, z), rpy)
     ET.SubElement(ET.SubElement(visual, "geometry"), shape, attrib=size)
     ET.SubElement(visual, "material", name=colour)
 
@@ -82,10 +92,8 @@ def _inertial(element: ET.Element, link: Link) -> None:
 def _limb(robot: ET.Element, link: Link) -> None:
     """Thigh or shank: a cylinder from its joint down to the next."""
     element = ET.SubElement(robot, "link", name=link.name)
-    _visual(
-        element, link.name, "leg", _xyz(0.0, 0.0, -link.length_m / 2), "0 0 0", "cylinder",
-        radius=_f(link.radius_m), length=_f(link.length_m),
-    )  # fmt: skip
+    size = {"radius": _f(link.radius_m), "length": _f(link.length_m)}
+    _visual(element, link.name, "leg", "cylinder", size, 0.0, -link.length_m / 2)
     _inertial(element, link)
 
 
@@ -93,17 +101,13 @@ def _foot(robot: ET.Element, foot: Link, pad_half_length_m: float) -> None:
     """The foot: a bracket down from the ankle and the pad, a capsule along x (a cylinder and two spheres)."""
     element = ET.SubElement(robot, "link", name=foot.name)
     if foot.length_m > 0.0:
-        _visual(
-            element, "bracket", "leg", _xyz(0.0, 0.0, -foot.length_m / 2), "0 0 0", "cylinder",
-            radius=_f(foot.radius_m / 2), length=_f(foot.length_m),
-        )  # fmt: skip
-    pad_z = -foot.length_m
-    _visual(
-        element, _PAD, "pad", _xyz(0.0, 0.0, pad_z), f"0 {_f(math.pi / 2)} 0", "cylinder",
-        radius=_f(foot.radius_m), length=_f(2 * pad_half_length_m),
-    )  # fmt: skip
+        size = {"radius": _f(foot.radius_m / 2), "length": _f(foot.length_m)}
+        _visual(element, "bracket", "leg", "cylinder", size, 0.0, -foot.length_m / 2)
+    pad = {"radius": _f(foot.radius_m), "length": _f(2 * pad_half_length_m)}
+    # rpy turns the cylinder's axis (z) onto x.
+    _visual(element, _PAD, "pad", "cylinder", pad, 0.0, -foot.length_m, rpy=f"0 {_f(math.pi / 2)} 0")
     for end, x in (("pad_front", pad_half_length_m), ("pad_back", -pad_half_length_m)):
-        _visual(element, end, "pad", _xyz(x, 0.0, pad_z), "0 0 0", "sphere", radius=_f(foot.radius_m))
+        _visual(element, end, "pad", "sphere", {"radius": _f(foot.radius_m)}, x, -foot.length_m)
     _inertial(element, foot)
 
 
@@ -119,9 +123,13 @@ def _hinge(robot: ET.Element, joint: Joint, parent: str, child: str, below_m: fl
     element = _joint(robot, joint.name, "revolute", parent, child, _xyz(0.0, 0.0, -below_m))
     ET.SubElement(element, "axis", xyz=_AXIS)
     ET.SubElement(
-        element, "limit", lower=_f(joint.lower_rad), upper=_f(joint.upper_rad),
-        effort=_f(JOINT_EFFORT_NM), velocity=_f(JOINT_VELOCITY_RAD_S),
-    )  # fmt: skip
+        element,
+        "limit",
+        lower=_f(joint.lower_rad),
+        upper=_f(joint.upper_rad),
+        effort=_f(JOINT_EFFORT_NM),
+        velocity=_f(JOINT_VELOCITY_RAD_S),
+    )
 
 
 def leg_urdf(description: LegDescription) -> str:
@@ -143,10 +151,8 @@ def leg_urdf(description: LegDescription) -> str:
         ET.SubElement(ET.SubElement(robot, "material", name=name), "color", rgba=rgba)
 
     treadmill = ET.SubElement(robot, "link", name=ROOT_LINK)
-    _visual(
-        treadmill, _BELT, "belt", _xyz(0.0, 0.0, -BELT_THICKNESS_M / 2), "0 0 0", "box",
-        size=_xyz(2 * BELT_HALF_LENGTH_M, 2 * d.belt_half_width_m, BELT_THICKNESS_M),
-    )  # fmt: skip
+    belt = {"size": _xyz(2 * BELT_HALF_LENGTH_M, 2 * d.belt_half_width_m, BELT_THICKNESS_M)}
+    _visual(treadmill, _BELT, "belt", "box", belt, 0.0, -BELT_THICKNESS_M / 2)  # its top is the surface
     ET.SubElement(robot, "link", name="carriage")
     _joint(robot, "carriage", "fixed", ROOT_LINK, "carriage", _xyz(0.0, 0.0, d.hip_height_m))
 
