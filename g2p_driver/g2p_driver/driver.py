@@ -11,6 +11,10 @@ A persistent hardware fault, an exception in the tick loop or a stalled loop dri
 deactivate into error processing (outputs baseline, then off), ending unconfigured. Ctrl-C and SIGTERM
 stop the tick loop and leave the outputs off before the process exits. With `fake_devices:=true` the same
 node runs on the physics-backed fake buses of `g2p.hardware.fake_rig` (no Raspberry Pi needed).
+
+At construction, whatever the lifecycle state, the node publishes the leg's URDF, latched, on
+`robot_description`: the file `description_file` (default the packaged g2p/models/leg.urdf), or with fake
+devices the URDF of the MuJoCo model behind the fake buses.
 """
 
 from __future__ import annotations
@@ -32,6 +36,8 @@ from std_msgs.msg import Header
 from g2p.config import ConfigError, require, require_positive
 from g2p.hardware import HardwareError, HardwareLeg, HardwareLegConfig, load_wiring, open_devices
 from g2p.rig import DEFAULT_NAMESPACE
+from g2p.urdf import UrdfError, leg_urdf, packaged_urdf_path, read_leg_urdf
+from g2p_ros.description import publish_robot_description
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
 from g2p_ros.signals import init_with_stop_event, spin_until_stopped
@@ -48,6 +54,9 @@ class DriverConfig:
 
     Attributes:
         wiring: path of the rig's wiring description (YAML); "" uses the installed config/wiring.yaml.
+        description_file: the leg's URDF, published as robot_description, as it is (it must describe the
+            leg as g2p.urdf writes it); "" uses the packaged g2p/models/leg.urdf. Unused with fake_devices:
+            the fake rig's MuJoCo model is described.
         fake_devices: run on the physics-backed fake buses (MuJoCo leg) instead of the Pi's devices;
             `fake.*` parameters set them up.
         autostart: configure and activate at start-up, for a graph without a lifecycle manager.
@@ -56,6 +65,7 @@ class DriverConfig:
     """
 
     wiring: str = ""
+    description_file: str = ""
     fake_devices: bool = False
     autostart: bool = False
     diagnostics_period_s: float = 1.0
@@ -124,6 +134,7 @@ class DriverNode(LifecycleNode):
         if self.fake_config is not None:
             document["fake"] = config_as_dict(self.fake_config)
         self._config_pub = publish_config(self, document)
+        self._description_pub = publish_robot_description(self, self._robot_description())
         logging.getLogger("g2p.hardware").addHandler(self._log_handler)
         self._fault: Exception | None = None
         self._fault_lock = threading.Lock()
@@ -133,6 +144,23 @@ class DriverNode(LifecycleNode):
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._diag_timer = self.create_timer(self.config.diagnostics_period_s, self._publish_diagnostics)
         self._stall_timer = self.create_timer(0.1, self._check_stall)
+
+    def _robot_description(self) -> str:
+        """The URDF of the leg this node drives (robot_description).
+
+        Raises:
+            ConfigError: description_file cannot be read or does not describe the leg.
+        """
+        if self.fake_config is not None:
+            from g2p.hardware.fake_rig import fake_leg_config
+            from g2p.sim.description import config_description
+
+            return leg_urdf(config_description(fake_leg_config(self.fake_config)))
+        path = Path(self.config.description_file) if self.config.description_file else packaged_urdf_path()
+        try:
+            return read_leg_urdf(path)
+        except (OSError, UrdfError) as err:
+            raise ConfigError(f"description_file: {err}") from err
 
     # Lifecycle transitions ----------------------------------------------------------------------------
 

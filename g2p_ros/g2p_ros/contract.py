@@ -16,6 +16,8 @@ ACTIVATION_CMD = "activation_cmd"
 RUN_ACTIVATIONS = "run_activations"
 RUN_TRAJECTORY = "run_trajectory"
 RESET = "reset"
+# The leg's URDF (g2p.urdf), latched: robot_state_publisher, RViz and Foxglove draw it from joint_states.
+ROBOT_DESCRIPTION = "robot_description"
 # What the rig publishes every tick.
 RIG_SAMPLE_TOPICS = (JOINT_STATES, TREADMILL, MOTOR_POWER, APPLIED_ACTIVATION)
 
@@ -34,6 +36,13 @@ COMMAND_QOS = QoSProfile(
     depth=10,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
+)
+# robot_description as robot_state_publisher publishes it: one message, kept for late subscribers.
+DESCRIPTION_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 # /clock as rosbag2 and Gazebo publish it: any time source subscription (best effort) accepts it.
 CLOCK_QOS = QoSProfile(

@@ -13,6 +13,9 @@ from rclpy.node import Node
 from g2p.config import ConfigError
 from g2p.rig import DEFAULT_NAMESPACE
 from g2p.sim import MujocoLeg, MujocoLegConfig
+from g2p.sim.description import leg_description
+from g2p.sim.model import ModelError
+from g2p_ros.description import publish_robot_description
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
 from g2p_ros.signals import init_with_stop_event, spin_until_stopped
@@ -48,9 +51,10 @@ class SimNode(Node):
         leg_config = declare_config(self, MujocoLegConfig, "leg.")
         server_config = declare_config(self, RigServerConfig, "rig.")
         fast = self.config.time_mode is TimeMode.FAST
+        leg = MujocoLeg(leg_config)
         self.rig = RigServer(
             self,
-            MujocoLeg(leg_config),
+            leg,
             Pacing.ON_DEMAND if fast else Pacing.WALL_CLOCK,
             server_config,
             sim_time=fast,
@@ -64,6 +68,11 @@ class SimNode(Node):
                 "rig": config_as_dict(server_config),
             },
         )
+        # The URDF of the very model it runs, so a raised carriage or a custom model draws as it runs.
+        try:
+            self._description_pub = publish_robot_description(self, leg_description(leg.model))
+        except ModelError as err:  # a custom model without the drawn elements still simulates
+            self.get_logger().warning(f"no robot_description: {err}")
         self.rig.start()
         self.get_logger().info(
             f"MuJoCo leg serving the rig contract in {self.get_namespace()} "

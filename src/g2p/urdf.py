@@ -321,11 +321,23 @@ def packaged_urdf_path() -> Path:
     return Path(str(resources.files("g2p").joinpath("models", "leg.urdf")))
 
 
+def read_leg_urdf(path: Path) -> str:
+    """The text of a URDF file, checked to describe the leg (see parse_leg_urdf).
+
+    Raises:
+        UrdfError: the file does not hold a leg; the message names the file.
+        OSError: the file cannot be read.
+    """
+    text = Path(path).read_text(encoding="utf-8")
+    parse_leg_urdf(text, source=str(path))
+    return text
+
+
 def load_leg_description(path: Path) -> LegDescription:
     """The leg description of a URDF file.
 
     Raises:
-        UrdfError: the file does not hold a leg (see parse_leg_urdf).
+        UrdfError: the file does not hold a leg (see parse_leg_urdf); the message names the file.
         OSError: the file cannot be read.
     """
     return parse_leg_urdf(Path(path).read_text(encoding="utf-8"), source=str(path))

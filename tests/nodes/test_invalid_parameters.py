@@ -20,6 +20,7 @@ from tests.nodes.rosproc import executable
         ("g2p_sim", "sim", "rig.clock_period_ticks:=0", "rig.clock_period_ticks: must be >= 1"),
         ("g2p_sim", "sim", "leg.tick_hz:=78", "leg.tick_hz: wrong type (a float needs its decimal point"),
         ("g2p_driver", "driver", "rig.clock_period_ticks:=0", "rig.clock_period_ticks: must be >= 1"),
+        ("g2p_driver", "driver", "description_file:=/nonexistent/leg.urdf", "description_file: [Errno 2]"),
         ("g2p_recorder", "record", "run_id:=a/b", "run_id: must be a plain directory name"),
         ("g2p_learner", "learn", "rig_timeout_s:=-1.0", "rig_timeout_s: must be a finite number > 0"),
         ("g2p_learner", "learn", "search.threshold_mm:=64", "search.threshold_mm: wrong type"),

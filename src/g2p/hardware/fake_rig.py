@@ -81,6 +81,19 @@ class FakeRigConfig:
         require_positive(self.supply_voltage_v, "supply_voltage_v")
 
 
+def fake_leg_config(config: FakeRigConfig) -> MujocoLegConfig:
+    """The MuJoCo leg behind the fake buses (the driver describes its model as robot_description)."""
+    return MujocoLegConfig(
+        carriage_height_m=config.carriage_height_m,
+        tick_hz=config.physics_hz,
+        tick_jitter_s=0.0,
+        substeps=max(1, round(1000.0 / config.physics_hz)),  # about 1 ms physics steps
+        baseline_activation=0.0,  # the motors can be off: the tendons then go slack
+        settle_s=1.0,
+        seed=config.seed,
+    )
+
+
 class FakeRig:
     """The whole rig on fake buses: a `BusFactory` whose chips read and drive a MuJoCo leg.
 
@@ -105,17 +118,7 @@ class FakeRig:
         self.truth = truth if truth is not None else wiring
         self.clock = clock if clock is not None else MonotonicClock()
         self._lock = threading.RLock()
-        self.leg = MujocoLeg(
-            MujocoLegConfig(
-                carriage_height_m=cfg.carriage_height_m,
-                tick_hz=cfg.physics_hz,
-                tick_jitter_s=0.0,
-                substeps=max(1, round(1000.0 / cfg.physics_hz)),  # about 1 ms physics steps
-                baseline_activation=0.0,  # the motors can be off: the tendons then go slack
-                settle_s=1.0,
-                seed=cfg.seed,
-            )
-        )
+        self.leg = MujocoLeg(fake_leg_config(cfg))
         rest = self.leg.reset()
         self._belt_mm = rest.belt_mm
         self._power_w = np.zeros(N_MOTORS)

@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from g2p.description import Joint, LegDescription, Link
-from g2p.sim.config import TREADMILL_CARRIAGE_HEIGHT_M, packaged_model_path
+from g2p.sim.config import TREADMILL_CARRIAGE_HEIGHT_M, MujocoLegConfig, packaged_model_path
 from g2p.sim.model import CARRIAGE_BODY, ModelError, load_leg_model
 from g2p.urdf import leg_urdf
 
@@ -104,6 +104,15 @@ def leg_description(model: mujoco.MjModel) -> LegDescription:
         joints=(joints[0], joints[1]),
         belt_half_width_m=float(model.geom_size[belt][1]),
     )
+
+
+def config_description(config: MujocoLegConfig) -> LegDescription:
+    """The description of the leg `MujocoLeg(config)` simulates, from its compiled model (no settling).
+
+    Raises:
+        ModelError: the model lacks an element the plant or the description needs.
+    """
+    return leg_description(load_leg_model(config.resolved_model_path, config.carriage_height_m).model)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
