@@ -141,10 +141,12 @@ def leg_urdf(description: LegDescription) -> str:
     """
     d = description
     robot = ET.Element("robot", name=ROBOT_NAME)
+    # No ": " or " #" anywhere: the text must read as one YAML string, as `-p robot_description:="$(...)"`
+    # hands it to robot_state_publisher.
     robot.append(
         ET.Comment(
-            " The G2P leg, generated from its MuJoCo model by g2p.urdf.leg_urdf; do not edit. The packaged"
-            " g2p/models/leg.urdf: python -m g2p.sim.description > src/g2p/models/leg.urdf "
+            " The G2P leg, generated from its MuJoCo model by g2p.urdf.leg_urdf (do not edit). Regenerate"
+            " the packaged g2p/models/leg.urdf with python -m g2p.sim.description > src/g2p/models/leg.urdf "
         )
     )
     for name, rgba in _COLOURS.items():

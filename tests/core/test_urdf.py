@@ -8,6 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
+import yaml
 
 from g2p.description import Joint, LegDescription
 from g2p.urdf import (
@@ -81,6 +82,14 @@ def test_the_packaged_urdf_is_the_packaged_leg_at_the_treadmill_height() -> None
         ("distal", pytest.approx(-100.0), 0.0),
     ]
     assert load_leg_description(packaged_urdf_path()) == leg
+
+
+@pytest.mark.parametrize("description", [LEG, AWKWARD], ids=["round", "awkward"])
+def test_the_text_survives_a_ros_parameter_on_the_command_line(description: LegDescription) -> None:
+    """`-p robot_description:="$(cat leg.urdf)"` reads the value as YAML: it must be one string (folded)."""
+    value = yaml.safe_load(leg_urdf(description))
+    assert isinstance(value, str)
+    assert parse_leg_urdf(value) == description
 
 
 def test_extra_elements_are_ignored() -> None:
