@@ -42,7 +42,7 @@ from g2p.experiments import (
 )
 from g2p.inverse_map import FitCancelled, FitReport
 from g2p.learner import Learner, LearnerConfig
-from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig, check_features
+from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig, check_features, cycle_kinematics
 from g2p.plant import Recording
 from g2p.rig import (
     DEFAULT_NAMESPACE,
@@ -153,6 +153,8 @@ class _Step:
 
 class Experiment(Protocol):
     """A core experiment stepped one attempt at a time (g2p.experiments)."""
+
+    cycle: LimitCycleConfig  # the limit-cycle parameters its attempts play
 
     @property
     def finished(self) -> bool:
@@ -404,13 +406,7 @@ class LearnerNode(Node):
         cycle = replace(self.config.cycle, n_cycles=goal.cycles) if goal.cycles else self.config.cycle
         features = np.asarray(goal.features)
         number = self.learner.refinements + 1
-        self._event(
-            "attempt_start",
-            phase="attempt",
-            attempt=number,
-            features=features,
-            detail={"control": self.learner.config.control.value},
-        )
+        self._attempt_start("attempt", number, features, cycle)
 
         def progress(done: int, total: int) -> None:
             goal_handle.publish_feedback(
@@ -462,7 +458,7 @@ class LearnerNode(Node):
         self._run_steps(
             goal_handle,
             run,
-            lambda: _Step(run.search.phase.value, len(run.search.history) + 1),
+            lambda: _Step(run.search.phase.value, len(run.search.history) + 1, run.next_features()),
             attempt_done,
         )
         result = treadmill_result(run, fit)
@@ -642,13 +638,7 @@ class LearnerNode(Node):
             self._check_cancel(goal_handle)
             step = upcoming()
             if step is not None:
-                self._event(
-                    "attempt_start",
-                    phase=step.phase,
-                    attempt=step.number,
-                    features=step.features,
-                    detail={"control": self.learner.config.control.value},
-                )
+                self._attempt_start(step.phase, step.number, step.features, experiment.cycle)
             report = experiment.next_attempt(self.rig, cancel=self._cancel)
             done(report)
             if report.fit is not None:
@@ -689,6 +679,15 @@ class LearnerNode(Node):
         self._event(
             event, phase="babbling", detail=_segment_detail(recording) if recording is not None else {}
         )
+
+    def _attempt_start(
+        self, phase: str, number: int, features: np.ndarray | None, cycle: LimitCycleConfig
+    ) -> None:
+        """An attempt's start, with one cycle of its desired angles (N x 2, rad) for live viewers."""
+        detail: dict[str, object] = {"control": self.learner.config.control.value}
+        if features is not None:
+            detail["desired_cycle_rad"] = cycle_kinematics(features, cycle)[:, :2].tolist()
+        self._event("attempt_start", phase=phase, attempt=number, features=features, detail=detail)
 
     def _attempt_end(
         self,

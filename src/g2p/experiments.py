@@ -97,6 +97,16 @@ class TreadmillRun:
             )
         self._pending = f
 
+    def next_features(self) -> FloatArray:
+        """The features the next attempt plays, shape (n_features,) (a copy).
+
+        Proposed on the first call (drawing from the search's generator exactly as `next_attempt` would),
+        the same on later calls until an attempt completes: announcing them first changes nothing.
+        """
+        if self._pending is None:
+            self._pending = self.search.propose(self._rng)
+        return self._pending.copy()
+
     def next_attempt(
         self, rig: Rig, progress: ProgressCallback | None = None, cancel: threading.Event | None = None
     ) -> AttemptReport:
@@ -106,9 +116,7 @@ class TreadmillRun:
         search, the map, the dataset and every generator are as they were before the try, and the next
         call tries the same features again, so a retried run is the run that never failed.
         """
-        if self._pending is None:
-            self._pending = self.search.propose(self._rng)
-        features = self._pending
+        features = self.next_features()
         outcome, fit = self.learner.attempt(rig, features, self.cycle, True, progress, cancel)
         self._pending = None
         told = self.search.tell(features, outcome.reward_mm)
