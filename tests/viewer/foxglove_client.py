@@ -1,0 +1,71 @@
+"""The tests' Foxglove protocol client (tests/foxglove_client/client.mjs, @foxglove/ws-protocol), run."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+CLIENT_DIR = Path(__file__).resolve().parents[1] / "foxglove_client"
+
+
+@dataclass
+class Received:
+    """What the client saw.
+
+    Attributes:
+        returncode: 0 when every needed topic got its messages, 1 on timeout, 2 on a decoding error.
+        stderr: the client's complaints.
+        server: the server's name and capabilities.
+        channels: topic -> its advertisement (encoding, schemaName, schemaEncoding, schema for JSON).
+        messages: topic -> [(log time ns, decoded message)], in arrival order.
+    """
+
+    returncode: int
+    stderr: str
+    server: dict[str, Any] = field(default_factory=dict)
+    channels: dict[str, dict[str, Any]] = field(default_factory=dict)
+    messages: dict[str, list[tuple[int, dict[str, Any]]]] = field(default_factory=dict)
+
+
+class FoxgloveClient:
+    """The client connected to `url` (retrying until the server is up) until it has `need` messages.
+
+    Args:
+        url: ws://host:port.
+        seconds: give up after this long (s).
+        need: topic -> how many messages to wait for.
+    """
+
+    def __init__(self, url: str, seconds: float, need: dict[str, int]) -> None:
+        node = shutil.which("node")
+        if node is None:
+            pytest.skip("Node.js is not installed: the Foxglove client test needs it (and npm)")
+        assert (CLIENT_DIR / "node_modules" / "@foxglove" / "ws-protocol").is_dir(), (
+            f"the client's npm packages are missing in {CLIENT_DIR}: run scripts/bootstrap"
+        )
+        args = [node, str(CLIENT_DIR / "client.mjs"), url, "--seconds", str(seconds)]
+        for topic, n in need.items():
+            args += ["--need", f"{topic}={n}"]
+        self.popen = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+    def result(self, timeout_s: float = 120.0) -> Received:
+        """Wait for the client to exit and parse what it printed."""
+        out, err = self.popen.communicate(timeout=timeout_s)
+        received = Received(self.popen.returncode, err)
+        for line in out.splitlines():
+            record = json.loads(line)
+            if record["kind"] == "server":
+                received.server = record
+            elif record["kind"] == "advertise":
+                received.channels[record["topic"]] = record
+            else:
+                received.messages.setdefault(record["topic"], []).append(
+                    (int(record["logTimeNs"]), record["data"])
+                )
+        return received
