@@ -62,6 +62,7 @@ def test_every_ament_python_package_is_found() -> None:
         "g2p_recorder",
         "g2p_ros",
         "g2p_sim",
+        "g2p_viewer",
     ]
 
 
