@@ -1,13 +1,14 @@
 """The numbers of a recorded run: per-attempt results, search progress, babbling coverage, map quality.
 
-Pure functions of a `RunData`; the result is JSON-ready (NaN becomes null) and renders as a markdown
-table.
+Pure functions of a `RunData`; the result is JSON-ready (NaN becomes null) and renders as tables
+(markdown here; HTML in the report's index page).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -140,16 +141,32 @@ def summarize(run: RunData) -> dict[str, Any]:
     return _json_ready(summary)  # type: ignore[no-any-return]
 
 
-def summary_markdown(summary: Mapping[str, Any]) -> str:
-    """The summary as markdown: a key figures table, then one row per attempt."""
+@dataclass(frozen=True)
+class Table:
+    """One table of the summary, its cells as text.
 
-    def fmt(value: Any) -> str:
-        if value is None:
-            return "-"
-        if isinstance(value, float):
-            return f"{value:.4g}"
-        return str(value)
+    Attributes:
+        header: the column names.
+        rows: the rows, each with one cell per column.
+    """
 
+    header: tuple[str, ...]
+    rows: list[tuple[str, ...]]
+
+
+def _fmt(value: Any) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def summary_tables(summary: Mapping[str, Any]) -> list[Table]:
+    """The summary's tables: the key figures, then one row per attempt (when there are attempts).
+
+    The markdown table (summary_markdown) and the report's index page show these.
+    """
     babbling = summary["babbling"]
     rows = [
         ("run id", summary["run_id"]),
@@ -158,7 +175,7 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
         ("babbling samples", babbling["samples"]),
         ("babbling duration (s)", babbling["duration_s"]),
         ("babbling samples within 5% of a limit", babbling["near_limit_fraction"]),
-        ("threshold (mm)", f"{fmt(summary['threshold_mm'])} ({summary['threshold_source']})"),
+        ("threshold (mm)", f"{_fmt(summary['threshold_mm'])} ({summary['threshold_source']})"),
         ("attempts", summary["attempt_count"]),
         (
             "exploration / exploitation attempts",
@@ -171,22 +188,37 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
         ("inverse-map snapshots", summary["inverse_map"]["snapshots"]),
         ("last validation RMSE", summary["inverse_map"]["last_validation_rmse"]),
     ]
-    lines = [f"# Run {summary['run_id']}", "", "| quantity | value |", "| --- | --- |"]
-    lines += [f"| {name} | {fmt(value)} |" for name, value in rows]
+    tables = [Table(("quantity", "value"), [(name, _fmt(value)) for name, value in rows])]
     if summary["attempts"]:
-        lines += [
-            "",
-            "| attempt | phase | control | ticks | reward (mm) | best (mm) | energy (J) "
-            "| tracking MSE (deg^2) | tracking RMSE (rad) | correction RMS (rad/s) | sigma | near limit |",
-            "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
-        ]
-        for a in summary["attempts"]:
-            lines.append(
-                f"| {a['attempt']} | {a['phase']} | {a['control']} | {a['ticks']} | {fmt(a['reward_mm'])} | "
-                f"{fmt(a['best_reward_mm'])} | {fmt(a['energy_j'])} | {fmt(a['tracking_mse_deg2'])} | "
-                f"{fmt(a['tracking_rmse_rad'])} | {fmt(a['correction_rms_rad_s'])} | {fmt(a['sigma'])} | "
-                f"{fmt(a['near_limit_fraction'])} |"
+        columns = (
+            ("attempt", "attempt"),
+            ("phase", "phase"),
+            ("control", "control"),
+            ("ticks", "ticks"),
+            ("reward (mm)", "reward_mm"),
+            ("best (mm)", "best_reward_mm"),
+            ("energy (J)", "energy_j"),
+            ("tracking MSE (deg^2)", "tracking_mse_deg2"),
+            ("tracking RMSE (rad)", "tracking_rmse_rad"),
+            ("correction RMS (rad/s)", "correction_rms_rad_s"),
+            ("sigma", "sigma"),
+            ("near limit", "near_limit_fraction"),
+        )
+        tables.append(
+            Table(
+                tuple(name for name, _ in columns),
+                [tuple(_fmt(a[key]) for _, key in columns) for a in summary["attempts"]],
             )
+        )
+    return tables
+
+
+def summary_markdown(summary: Mapping[str, Any]) -> str:
+    """The summary as markdown: a key figures table, then one row per attempt."""
+    lines = [f"# Run {summary['run_id']}"]
+    for table in summary_tables(summary):
+        lines += ["", "| " + " | ".join(table.header) + " |", "|" + " --- |" * len(table.header)]
+        lines += ["| " + " | ".join(row) + " |" for row in table.rows]
     return "\n".join(lines) + "\n"
 
 
