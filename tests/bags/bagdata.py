@@ -130,7 +130,10 @@ def learner_event(messages: Messages, stamp: int, run_id: str, kind: str, **fiel
 
 
 def write_synthetic_run(
-    path: Path, messages: Messages, skip_joint_state_of: int | None = 210
+    path: Path,
+    messages: Messages,
+    skip_joint_state_of: int | None = 210,
+    robot_descriptions: tuple[str, ...] = (),
 ) -> SyntheticRun:
     """A learning run: babbling (200 ticks), idle ticks, 5 attempts of 50 ticks, inverse maps, a config.
 
@@ -139,6 +142,8 @@ def write_synthetic_run(
     Attempts 1-3 are open loop (no "control" key, as older runs record them), 4 and 5 closed loop with a
     velocity correction of (0.1 k, 0) rad/s at every tick of attempt k.
     One tick lacks its joint_states message (when skip_joint_state_of is set), so it is incomplete.
+    Each of `robot_descriptions` is published in turn on /leg/robot_description (latched), before
+    the first tick, as the rig nodes publish the leg's URDF.
     """
     run = SyntheticRun(path)
     registry = messages.registry
@@ -168,6 +173,15 @@ def write_synthetic_run(
     config = writer.add_topic(
         TopicSpec("/leg/learner/config", registry.definition("std_msgs/msg/String"), (LATCHED_QOS,))
     )
+
+    if robot_descriptions:
+        described = writer.add_topic(
+            TopicSpec("/leg/robot_description", registry.definition("std_msgs/msg/String"), (LATCHED_QOS,))
+        )
+        for n, urdf in enumerate(robot_descriptions):
+            writer.write(
+                described, T0_NS - 20 + n, messages.cdr(messages.make("std_msgs/msg/String", data=urdf))
+            )
 
     k = 0
 

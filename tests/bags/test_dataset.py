@@ -9,8 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from g2p.bags import load_run, load_training_data
+from g2p.bags import BagReadError, load_run, load_training_data
 from g2p.plant import Recording
+from g2p.urdf import leg_urdf, packaged_leg_description
 from tests.bags.bagdata import TICK_NS, Messages, SyntheticRun, TickPlan, tick_values, write_plan
 
 
@@ -148,3 +149,23 @@ def test_first_tick_stamp_bounds_an_attempt_on_hardware(tmp_path: Path, messages
     write_plan(tmp_path / "hw", messages, plan)
     (attempt,) = load_training_data(tmp_path / "hw").attempts
     assert_same(attempt, planned(plan.played["attempt"]))
+
+
+def test_leg_description_is_the_last_robot_description(synthetic_run: Callable[..., SyntheticRun]) -> None:
+    packaged = packaged_leg_description()
+    ours = replace(packaged, hip_height_m=0.5, thigh=replace(packaged.thigh, length_m=0.25))
+    run = synthetic_run(robot_descriptions=(leg_urdf(packaged), leg_urdf(ours)))
+    assert load_run(run.path).leg_description == ours
+
+
+def test_no_robot_description_no_leg_description(run: SyntheticRun) -> None:
+    assert load_run(run.path).leg_description is None
+
+
+def test_bad_robot_description_is_a_read_error(synthetic_run: Callable[..., SyntheticRun]) -> None:
+    run = synthetic_run(robot_descriptions=("<robot name='g2p_leg'>",))
+    with pytest.raises(BagReadError) as caught:
+        load_run(run.path)
+    message = str(caught.value)
+    assert message.startswith(str(run.path / f"{run.path.name}.mcap"))
+    assert "/leg/robot_description" in message and "not XML" in message

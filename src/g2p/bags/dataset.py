@@ -40,10 +40,15 @@ from g2p.bags.events import (
 )
 from g2p.bags.reader import BagReader
 from g2p.bags.ticks import TickAssembler, Ticks, rig_topic_names
+from g2p.description import LegDescription
 from g2p.plant import N_JOINTS, Recording, concatenate
 from g2p.rig import DEFAULT_NAMESPACE
+from g2p.urdf import UrdfError, parse_leg_urdf
 
 BABBLING = "babbling"
+# The rig nodes publish the leg's URDF here (std_msgs/String, latched), relative to the rig namespace.
+ROBOT_DESCRIPTION = "robot_description"
+ROBOT_DESCRIPTION_TYPE = "std_msgs/msg/String"
 _END_OF_TIME = np.iinfo(np.int64).max
 _STAMP_SLACK_NS = 1_000_000
 
@@ -128,6 +133,8 @@ class RunData:
         attempts: the attempts, in order.
         inverse_maps: the inverse-map snapshots, in stamp order.
         configs: each node's configuration (topic -> parsed JSON) from the latched `~/config` topics.
+        leg_description: the leg the rig ran, from the last message on its `robot_description` topic
+            (the URDF the rig nodes publish, g2p.urdf); None when the bag has none (older bags).
     """
 
     bag: Path
@@ -140,6 +147,7 @@ class RunData:
     attempts: list[AttemptData]
     inverse_maps: list[InverseMapSnapshot]
     configs: dict[str, Any]
+    leg_description: LegDescription | None = None
 
     @property
     def babbling(self) -> Recording:
@@ -171,11 +179,18 @@ def load_run(bag: Path | str, rig_namespace: str = DEFAULT_NAMESPACE) -> RunData
         rig_namespace: namespace of the rig topics (their names are `<namespace>/joint_states`, ...).
 
     Raises:
-        BagReadError: the bag cannot be read, or its messages break the rig or learner contract.
+        BagReadError: the bag cannot be read, or its messages break the rig or learner contract (a
+            `robot_description` that is not the URDF of a leg included).
     """
     with BagReader(bag) as reader:
         topics = reader.topics
         rig = rig_topic_names(topics, rig_namespace)
+        description_topic = f"{rig_namespace.rstrip('/')}/{ROBOT_DESCRIPTION}"
+        description_topics = [
+            t.name
+            for t in topics.values()
+            if t.name == description_topic and t.msgtype == ROBOT_DESCRIPTION_TYPE
+        ]
         role_of = {name: role for role, name in rig.items()}
         event_topics = [t.name for t in topics.values() if t.msgtype == LEARNER_EVENT_TYPE]
         map_topics = [t.name for t in topics.values() if t.msgtype == INVERSE_MAP_TYPE]
@@ -186,8 +201,11 @@ def load_run(bag: Path | str, rig_namespace: str = DEFAULT_NAMESPACE) -> RunData
         events: list[RunEvent] = []
         maps: list[InverseMapSnapshot] = []
         configs: dict[str, Any] = {}
+        urdf: str | None = None
         source = str(reader.metadata.storage_files[0]) if reader.metadata.storage_files else str(bag)
-        for m in reader.messages([*rig.values(), *event_topics, *map_topics, *config_topics]):
+        for m in reader.messages(
+            [*rig.values(), *event_topics, *map_topics, *config_topics, *description_topics]
+        ):
             if m.topic in role_of:
                 assembler.add(role_of[m.topic], m.msg)
             elif m.topic in event_topics:
@@ -197,6 +215,8 @@ def load_run(bag: Path | str, rig_namespace: str = DEFAULT_NAMESPACE) -> RunData
                     maps.append(inverse_map_snapshot(m.msg))
                 except ValueError as err:
                     raise BagReadError(str(err), source) from err
+            elif m.topic in description_topics:
+                urdf = str(m.msg.data)  # latched: the last one is the rig's current description
             else:
                 configs[m.topic] = _parse_config(str(m.msg.data))
         ticks = assembler.ticks(source)
@@ -216,7 +236,15 @@ def load_run(bag: Path | str, rig_namespace: str = DEFAULT_NAMESPACE) -> RunData
         attempts=_attempts(ticks, events),
         inverse_maps=maps,
         configs=configs,
+        leg_description=_leg_description(urdf, description_topic, source) if urdf is not None else None,
     )
+
+
+def _leg_description(urdf: str, topic: str, source: str) -> LegDescription:
+    try:
+        return parse_leg_urdf(urdf, source=topic)
+    except UrdfError as err:
+        raise BagReadError(str(err), source) from err
 
 
 def load_training_data(bag: Path | str, rig_namespace: str = DEFAULT_NAMESPACE) -> TrainingData:
