@@ -5,14 +5,30 @@ from __future__ import annotations
 import json
 import subprocess
 from collections.abc import Callable
+from dataclasses import replace
+from html.parser import HTMLParser
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
+from PIL import Image
 
-from g2p.bags import BagError, BagWriter, TopicSpec, TypeRegistry, load_run, write_report
-from g2p.bags.report import FIGURES
+from g2p.bags import (
+    AttemptData,
+    BagError,
+    BagWriter,
+    TopicSpec,
+    TypeRegistry,
+    animation,
+    load_run,
+    write_report,
+)
+from g2p.bags.report import FIGURES, NO_ANIMATIONS, AnimationOptions
+from g2p.bags.report import main as report_main
 from g2p.bags.summary import best_so_far, find_joint_limits, find_threshold, near_limit_fraction
+from g2p.description import LegDescription
+from g2p.urdf import leg_urdf, packaged_leg_description
 from tests.bags.bagdata import Messages, SyntheticRun
 from tests.commands import console_script
 
@@ -100,11 +116,15 @@ def test_rig_only_bag_skips_learner_figures(
             ),
         )
     result = write_report(bag)
-    assert result.figures == []
-    assert set(result.skipped) == set(FIGURES)
+    assert result.figures == [] and result.animations == []
+    assert set(result.skipped) == {*FIGURES, "animation_best.gif"}
     summary = json.loads(result.summary_json.read_text())
     assert summary["attempt_count"] == 0 and summary["threshold_source"] == "paper default"
     assert summary["figures"]["fig4a_reward.png"] == "skipped: no attempt rewards"
+    assert summary["figures"]["animation_best.gif"] == "skipped: no attempt ticks"
+    assert summary["animated_attempts"] == {}
+    page = IndexLinks.of(result.index)
+    assert page.targets == set() and "animation_best.gif</code>: not drawn (no attempt ticks)" in page.text
 
 
 def test_near_limit_fraction_known_answer() -> None:
@@ -125,5 +145,119 @@ def test_report_cli_writes_everything(run: SyntheticRun) -> None:
         [str(console_script("g2p-report")), str(run.path)], capture_output=True, text=True, timeout=120
     )
     assert done.returncode == 0, done.stderr
+    report = run.path / "report"
     assert f"summary: {run.path / 'summary.json'}" in done.stdout
-    assert all((run.path / "report" / name).is_file() for name in FIGURES)
+    assert all((report / name).is_file() for name in FIGURES)
+    lines = done.stdout.splitlines()
+    assert f"animation: {report / 'animation_best.gif'}" in lines
+    assert lines[-1] == f"index:   {report / 'index.html'}"
+
+
+def test_report_animates_the_best_attempt(run: SyntheticRun) -> None:
+    result = write_report(run.path)
+    best = run.path / "report" / "animation_best.gif"
+    assert result.animations == [best]
+    with Image.open(best) as gif:
+        assert gif.n_frames == 7  # 50 ticks, 0.628 s, at 10 frames per second: frames at 0, 0.1, ..., 0.6 s
+    summary = json.loads(result.summary_json.read_text())
+    assert summary["figures"]["animation_best.gif"] == "report/animation_best.gif"
+    assert summary["animated_attempts"] == {"animation_best.gif": 4}  # the 90 mm attempt
+    assert summary["leg_description"] == "packaged"  # the synthetic bag has no robot_description
+
+
+def test_report_animates_requested_attempts(run: SyntheticRun, tmp_path: Path) -> None:
+    options = AnimationOptions(best=False, attempts=(2, 5), fps=20, max_seconds=0.3)
+    result = write_report(run.path, out_dir=tmp_path, animations=options)
+    report = tmp_path / "report"
+    assert result.animations == [report / "animation_attempt_2.gif", report / "animation_attempt_5.gif"]
+    for path in result.animations:
+        with Image.open(path) as gif:
+            assert gif.n_frames == 7  # 0.3 s at 20 frames per second
+    assert not (report / "animation_best.gif").exists()
+    summary = json.loads(result.summary_json.read_text())
+    assert summary["animated_attempts"] == {"animation_attempt_2.gif": 2, "animation_attempt_5.gif": 5}
+    with pytest.raises(BagError, match="attempt 9 is not in the run"):
+        write_report(run.path, out_dir=tmp_path / "again", animations=AnimationOptions(attempts=(9,)))
+    assert not (tmp_path / "again").exists()  # nothing drawn
+    assert write_report(run.path, out_dir=tmp_path / "none", animations=NO_ANIMATIONS).animations == []
+
+
+def test_leg_description_from_the_bag(
+    synthetic_run: Callable[..., SyntheticRun], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    ours = replace(packaged_leg_description(), hip_height_m=0.5)
+    assert ours != packaged_leg_description()
+    run = synthetic_run(robot_descriptions=(leg_urdf(ours),))
+    drawn: list[LegDescription] = []
+    original = animation.write_animation
+
+    def spy(attempt: AttemptData, description: LegDescription, *args: Any) -> Path | None:
+        drawn.append(description)
+        return original(attempt, description, *args)
+
+    monkeypatch.setattr(animation, "write_animation", spy)
+    result = write_report(run.path)
+    assert drawn == [ours]
+    summary = json.loads(result.summary_json.read_text())
+    assert summary["leg_description"] == "bag"
+    assert "robot_description</code> (the URDF the rig published)" in result.index.read_text()
+
+
+def test_packaged_leg_description_without_one_in_the_bag(run: SyntheticRun) -> None:
+    assert "packaged URDF" in write_report(run.path).index.read_text()
+
+
+class IndexLinks(HTMLParser):
+    """The links (href, src) and text of an HTML page."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.targets: set[str] = set()
+        self.text = ""
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        self.targets |= {v for k, v in attrs if k in ("href", "src") and v is not None}
+
+    @classmethod
+    def of(cls, page: Path | None) -> IndexLinks:
+        assert page is not None
+        parser = cls()
+        parser.text = page.read_text()
+        parser.feed(parser.text)
+        parser.targets -= {"../summary.json", "summary.md"}
+        assert (page.parent / "summary.md").is_file() and (page.parent.parent / "summary.json").is_file()
+        return parser
+
+
+def test_index_page_shows_every_figure_and_the_animation(run: SyntheticRun) -> None:
+    result = write_report(run.path)
+    assert result.index == run.path / "report" / "index.html"
+    page = IndexLinks.of(result.index)
+    written = {p.name for p in [*result.figures, *result.animations]}
+    assert written == {*FIGURES, "animation_best.gif"}
+    assert page.targets == written
+    assert all((result.index.parent / target).is_file() for target in page.targets)
+    assert "<h1>Run run-1</h1>" in page.text
+    assert "<tr><td>attempts to cross the threshold</td><td>3</td></tr>" in page.text
+    assert "<tr><td>4</td><td>exploitation</td><td>closed</td><td>50</td><td>90</td>" in page.text
+    assert "Attempt 4, the best (exploitation, reward 90.0 mm)" in page.text
+    assert not [p for p in result.index.parent.iterdir() if ".tmp" in p.name]
+
+
+def test_report_cli_options(run: SyntheticRun, capsys: pytest.CaptureFixture[str]) -> None:
+    report_main([str(run.path), "--animate", "2", "--animate", "best", "--animation-fps", "20"])
+    out = capsys.readouterr().out.splitlines()
+    report = run.path / "report"
+    assert [line for line in out if line.startswith("animation:")] == [
+        f"animation: {report / 'animation_best.gif'}",
+        f"animation: {report / 'animation_attempt_2.gif'}",
+    ]
+    with Image.open(report / "animation_attempt_2.gif") as gif:
+        assert gif.n_frames == 13  # 0.628 s at 20 frames per second
+    with pytest.raises(SystemExit) as stopped:
+        report_main([str(run.path), "--animate", "9"])
+    assert stopped.value.code == 2
+    assert "attempt 9 is not in the run" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as stopped:
+        report_main([str(run.path), "--animate", "2", "--no-animation"])
+    assert stopped.value.code == 2 and "exclude each other" in capsys.readouterr().err
