@@ -11,6 +11,7 @@ serving until Ctrl-C; the workstation the learner, which waits for the rig and t
 runs over UDP on the named interface only.
 
     ros2 run g2p_bringup bringup [--rig sim|sim_realtime|sim_air] [--set learner.search.threshold_mm=64.0] ...
+    ros2 run g2p_bringup bringup --view --rig sim_realtime      # watch it in Foxglove as it happens
     ros2 run g2p_bringup bringup --host rig --dds-interface eth0 --rig hardware
     ros2 run g2p_bringup bringup --host workstation --dds-interface wlan0
 """
@@ -64,6 +65,11 @@ def _parse(argv: list[str]) -> argparse.Namespace:
         help="override a node's parameter; VALUE is YAML (write floats as 1.0)",
     )
     parser.add_argument("--no-report", action="store_true", help="do not write the run's report")
+    parser.add_argument(
+        "--view",
+        action="store_true",
+        help="also start the live viewer: open ws://127.0.0.1:8765 in Foxglove (docs/VIEWER.md)",
+    )
     parser.add_argument(
         "--host",
         choices=HOSTS,
@@ -200,6 +206,7 @@ def main(args: list[str] | None = None) -> None:
             {"run_id": run_id, "bags_dir": options.bags_dir},
             _overrides(options.set),
             options.host,
+            frozenset({"viewer"}) if options.view else frozenset(),
         )
         log_dir = Path("log") / "runs" / run_id
         log_dir.mkdir(parents=True, exist_ok=True)

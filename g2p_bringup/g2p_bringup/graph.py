@@ -34,6 +34,7 @@ class NodeSpec:
         remappings: topic/service/action remappings, from -> to.
         arguments: extra command-line arguments before --ros-args.
         main: the graph ends when this node's process exits.
+        optional: started only when asked for (load_graph's `optional`).
         host: which host of a two-host graph runs the node (one of HOSTS); the rig always runs on "rig".
     """
 
@@ -45,6 +46,7 @@ class NodeSpec:
     remappings: dict[str, str] = field(default_factory=dict)
     arguments: tuple[str, ...] = ()
     main: bool = False
+    optional: bool = False
     host: str = "rig"
 
     def parameters_yaml(self) -> str:
@@ -89,6 +91,7 @@ def load_graph(
     substitutions: dict[str, str] | None = None,
     overrides: dict[str, dict[str, Any]] | None = None,
     host: str | None = None,
+    optional: frozenset[str] = frozenset(),
 ) -> Graph:
     """Read a graph description and resolve it.
 
@@ -98,10 +101,11 @@ def load_graph(
         substitutions: values for `{name}` placeholders in string parameters and remappings.
         overrides: extra parameters per node name ("rig" addresses the rig), applied last.
         host: only the nodes of this host (one of HOSTS); every node when None (one host).
+        optional: names of the optional nodes to start too (e.g. {"viewer"}).
 
     Raises:
-        GraphError: the file is unreadable or invalid, the rig or host is unknown, or a placeholder has
-            no value.
+        GraphError: the file is unreadable or invalid, the rig or host is unknown, an optional node asked
+            for is not an optional node of the file, or a placeholder has no value.
     """
     if host is not None and host not in HOSTS:
         raise GraphError(f"unknown host {host!r}; choose one of {list(HOSTS)}")
@@ -142,6 +146,7 @@ def load_graph(
                     },
                     arguments=tuple(str(a) for a in entry.get("arguments", [])),
                     main=bool(entry.get("main", False)),
+                    optional=bool(entry.get("optional", False)),
                     host="rig" if key == "rig" else str(entry.get("host", "rig")),
                 )
             )
@@ -149,9 +154,17 @@ def load_graph(
             raise GraphError(f"{where}: missing {err}") from err
         if nodes[-1].host not in HOSTS:
             raise GraphError(f"{where}: unknown host {nodes[-1].host!r}; choose one of {list(HOSTS)}")
+    known_optional = {n.name for n in nodes if n.optional}
+    if optional - known_optional:
+        raise GraphError(
+            f"{path}: no optional nodes {sorted(optional - known_optional)}; it has {sorted(known_optional)}"
+        )
+    nodes = [n for n in nodes if not n.optional or n.name in optional]
     unknown = set(extra) - {"rig"} - {n.name for n in nodes[1:]}
     if unknown:
-        raise GraphError(f"{path}: overrides for unknown nodes {sorted(unknown)}")
+        hint = [n for n in sorted(unknown) if n in known_optional]
+        why = f" (start {hint} with it: bringup --view)" if hint else ""
+        raise GraphError(f"{path}: overrides for unknown nodes {sorted(unknown)}{why}")
     if host is not None:
         nodes = [n for n in nodes if n.host == host]
     return Graph(namespace, tuple(nodes))

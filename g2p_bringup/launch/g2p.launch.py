@@ -1,6 +1,7 @@
 """Launch the G2P graph on a full ROS 2 install, from the same description as `ros2 run g2p_bringup bringup`.
 
     ros2 launch g2p_bringup g2p.launch.py rig:=sim run_id:=my-run bags_dir:=bags
+    ros2 launch g2p_bringup g2p.launch.py rig:=sim_realtime view:=true      # with the Foxglove viewer
     ros2 launch g2p_bringup g2p.launch.py host:=rig dds_interface:=eth0 rig:=hardware     # on the Pi
     ros2 launch g2p_bringup g2p.launch.py host:=workstation dds_interface:=wlan0 rig:=hardware
 
@@ -33,11 +34,13 @@ def _nodes(context, *args, **kwargs):
         datetime.now(timezone.utc), np.random.default_rng()
     )
     host = LaunchConfiguration("host").perform(context) or None
+    view = LaunchConfiguration("view").perform(context) == "true"
     graph = load_graph(
         Path(graph_file),
         LaunchConfiguration("rig").perform(context) or None,
         {"run_id": run_id, "bags_dir": LaunchConfiguration("bags_dir").perform(context)},
         host=host,
+        optional=frozenset({"viewer"}) if view else frozenset(),
     )
     env = None
     if host is not None:
@@ -88,6 +91,9 @@ def generate_launch_description():
             ),
             DeclareLaunchArgument(
                 "dds_interface", default_value="", description="with host: the interface DDS may use"
+            ),
+            DeclareLaunchArgument(
+                "view", default_value="false", description="true: also start the Foxglove viewer"
             ),
             OpaqueFunction(function=_nodes),
         ]

@@ -49,3 +49,21 @@ def test_two_hosts_split_the_graph_rig_and_recorder_beside_it_learner_on_the_wor
     assert workstation.main is not None and workstation.main.name == "learner"
     with pytest.raises(GraphError, match="unknown host 'laptop'"):
         load_graph(GRAPH, "sim", SUBSTITUTIONS, host="laptop")
+
+
+def test_the_viewer_starts_only_when_asked_for_on_the_workstation_listening_on_loopback() -> None:
+    assert "viewer" not in [n.name for n in load_graph(GRAPH, "sim", SUBSTITUTIONS).nodes]
+    graph = load_graph(GRAPH, "sim", SUBSTITUTIONS, optional=frozenset({"viewer"}))
+    assert [n.name for n in graph.nodes[1:]] == ["recorder", "learner", "viewer"]
+    viewer = graph.nodes[-1]
+    assert (viewer.package, viewer.executable, viewer.host) == ("g2p_viewer", "view", "workstation")
+    assert viewer.parameters["host"] == "127.0.0.1"
+    assert viewer.parameters["use_sim_time"] is True  # on the simulated rig's /clock like the others
+    workstation = load_graph(
+        GRAPH, "hardware", SUBSTITUTIONS, host="workstation", optional=frozenset({"viewer"})
+    )
+    assert [n.name for n in workstation.nodes] == ["learner", "viewer"]
+    with pytest.raises(GraphError, match=r"no optional nodes \['plotter'\]"):
+        load_graph(GRAPH, "sim", SUBSTITUTIONS, optional=frozenset({"plotter"}))
+    with pytest.raises(GraphError, match="bringup --view"):
+        load_graph(GRAPH, "sim", SUBSTITUTIONS, overrides={"viewer": {"port": 9000}})
