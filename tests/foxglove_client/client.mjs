@@ -6,9 +6,10 @@
 //   {"kind": "advertise", "topic", "encoding", "schemaName", "schemaEncoding", "schema"}
 //   {"kind": "message", "topic", "logTimeNs", "data"}
 //
-// usage: node client.mjs ws://HOST:PORT --seconds S [--need TOPIC=N ...]
-// Exits 0 once every --need topic has N messages (or after S seconds when there is no --need), 1 when
-// S seconds pass first (stderr says what is missing), 2 on a protocol or decoding error.
+// usage: node client.mjs ws://HOST:PORT --seconds S [--need TOPIC=N ...] [--until-close]
+// Exits 0 once every --need topic has N messages (with --until-close: once the server, having served
+// the client, closes the connection; with neither: after S seconds), 1 when S seconds pass first (stderr
+// says what is missing), 2 on a protocol or decoding error.
 import wsProtocol from "@foxglove/ws-protocol";
 import protobuf from "protobufjs";
 import descriptor from "protobufjs/ext/descriptor/index.js";
@@ -23,9 +24,13 @@ const SUBPROTOCOL = "foxglove.sdk.v1";
 const args = process.argv.slice(2);
 const url = args[0];
 let seconds = 10;
+let untilClose = false;
 const need = new Map();
 for (let i = 1; i < args.length; i += 2) {
-  if (args[i] === "--seconds") seconds = Number(args[i + 1]);
+  if (args[i] === "--until-close") {
+    untilClose = true;
+    i -= 1;
+  } else if (args[i] === "--seconds") seconds = Number(args[i + 1]);
   else if (args[i] === "--need") {
     const [topic, n] = args[i + 1].split("=");
     need.set(topic, Number(n));
@@ -80,10 +85,15 @@ function connect() {
   socket = ws;
   const client = new FoxgloveClient({ ws });
   client.on("error", () => {}); // connection refused before the server is up: retried below
+  let served = false;
   client.on("close", () => {
-    if (!finishing) setTimeout(connect, 200);
+    if (untilClose && served) finish(0);
+    else if (!finishing) setTimeout(connect, 200);
   });
-  client.on("serverInfo", (info) => print({ kind: "server", name: info.name, capabilities: info.capabilities }));
+  client.on("serverInfo", (info) => {
+    served = true;
+    print({ kind: "server", name: info.name, capabilities: info.capabilities });
+  });
   client.on("advertise", (channels) => {
     for (const channel of channels) {
       print({
@@ -119,7 +129,7 @@ function connect() {
 }
 
 setTimeout(() => {
-  if (need.size === 0) finish(0);
+  if (need.size === 0 && !untilClose) finish(0);
   const missing = [...need].map(([t, n]) => `${t}: ${counts.get(t) ?? 0} of ${n}`).join(", ");
   finish(1, `timed out after ${seconds} s; received ${missing}`);
 }, seconds * 1000);

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import socket
 import subprocess
 import time
 from collections.abc import Iterator
@@ -29,6 +30,7 @@ from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_interfaces.msg import MotorActivation
 from g2p_ros import contract
 from tests.nodes.rosproc import NodeProcess, RosPeer, executable, wait_until
+from tests.viewer.foxglove_client import FoxgloveClient
 
 FEATURES = [0.6, 0.5, 0.7, 0.4, 0.6, 0.5, 0.6, 0.7, 0.5, 0.6]
 SHORT = ["-p", "learner.babbling.duration_s:=20.0", "-p", "cycle.n_cycles:=4"]
@@ -330,3 +332,44 @@ def test_a_closed_loop_run_records_what_the_rig_decided_tick_by_tick(tmp_path: P
 def _tuples(config: dict[str, Any]) -> dict[str, Any]:
     """A recorded configuration section with its lists as the tuples the dataclass takes."""
     return {k: tuple(v) if isinstance(v, list) else v for k, v in config.items()}
+
+
+def test_bringup_view_serves_the_run_live_to_a_foxglove_client(tmp_path: Path) -> None:
+    """`make run ARGS="--view"`: the viewer joins the graph; a client sees every attempt as the bag has it."""
+    bags = tmp_path / "bags"
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    client = FoxgloveClient(f"ws://127.0.0.1:{port}", 300, until_close=True)
+    proc = run_bringup(
+        tmp_path,
+        "--view",
+        "--bags-dir",
+        str(bags),
+        "--run-id",
+        "viewed-run",
+        "--set",
+        f"viewer.port={port}",
+        "--set",
+        "learner.learner.babbling.duration_s=20.0",
+        "--set",
+        "learner.cycle.n_cycles=4",
+        "--set",
+        "learner.search.max_exploration_attempts=2",
+        "--set",
+        "learner.search.exploitation_attempts=1",
+        "--no-report",
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    received = client.result()
+    assert received.returncode == 0, received.stderr
+    run = load_run(bags / "viewed-run")
+    shown = [m for _, m in received.messages["/view/attempts"]]
+    assert [(m["attempt"], m["reward_mm"]) for m in shown] == [(a.attempt, a.reward_mm) for a in run.attempts]
+    for attempt in run.attempts:
+        # The learner announces one cycle of the desired angles at the start: the attempt's first cycle.
+        cycle = np.array(attempt.start.detail["desired_cycle_rad"])
+        assert attempt.desired_position_rad is not None
+        np.testing.assert_array_equal(cycle, attempt.desired_position_rad[: len(cycle)])
+    joints = [m for _, m in received.messages["/view/joints"] if m["attempt"] == run.attempts[-1].attempt]
+    assert joints and all(m["proximal_desired_rad"] is not None for m in joints)

@@ -40,9 +40,12 @@ class FoxgloveClient:
         url: ws://host:port.
         seconds: give up after this long (s).
         need: topic -> how many messages to wait for.
+        until_close: instead, until the server closes the connection (it stopped).
     """
 
-    def __init__(self, url: str, seconds: float, need: dict[str, int]) -> None:
+    def __init__(
+        self, url: str, seconds: float, need: dict[str, int] | None = None, until_close: bool = False
+    ) -> None:
         node = shutil.which("node")
         if node is None:
             pytest.skip("Node.js is not installed: the Foxglove client test needs it (and npm)")
@@ -50,11 +53,13 @@ class FoxgloveClient:
             f"the client's npm packages are missing in {CLIENT_DIR}: run scripts/bootstrap"
         )
         args = [node, str(CLIENT_DIR / "client.mjs"), url, "--seconds", str(seconds)]
-        for topic, n in need.items():
+        for topic, n in (need or {}).items():
             args += ["--need", f"{topic}={n}"]
+        if until_close:
+            args.append("--until-close")
         self.popen = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
-    def result(self, timeout_s: float = 120.0) -> Received:
+    def result(self, timeout_s: float = 600.0) -> Received:
         """Wait for the client to exit and parse what it printed."""
         out, err = self.popen.communicate(timeout=timeout_s)
         received = Received(self.popen.returncode, err)
