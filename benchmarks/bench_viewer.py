@@ -33,6 +33,7 @@ CLIENT = ROOT / "tests" / "foxglove_client" / "client.mjs"
 
 
 def client(url: str, seconds: float) -> subprocess.Popen[bytes]:
+    """The tests' Foxglove client, subscribed to every channel until the server closes."""
     node = shutil.which("node")
     assert node is not None, "the benchmark's client needs Node.js (scripts/bootstrap installs its packages)"
     return subprocess.Popen(
@@ -43,6 +44,7 @@ def client(url: str, seconds: float) -> subprocess.Popen[bytes]:
 
 
 def per_tick() -> None:
+    """Print the viewer's cost per tick and per scene update, a client subscribed."""
     with BagReader(SAMPLE) as reader:
         states = [
             (stamp_ns(m.msg.header), np.asarray(m.msg.position[:2]), np.asarray(m.msg.velocity[:2]))
@@ -74,8 +76,10 @@ def per_tick() -> None:
 
 
 def main_job(view: bool, port: int) -> tuple[float, str]:
+    """The main job through `bringup` (with viewer and client when `view`): wall time (s), best reward."""
     with tempfile.TemporaryDirectory() as tmp:
-        args = [str(ROOT / "scripts" / "ros2-run"), "g2p_bringup", "bringup", "--no-report", "--bags-dir", tmp]
+        bringup = [str(ROOT / "scripts" / "ros2-run"), "g2p_bringup", "bringup"]
+        args = [*bringup, "--no-report", "--bags-dir", tmp]
         proc = None
         if view:
             args += ["--view", "--set", f"viewer.port={port}"]
@@ -90,6 +94,7 @@ def main_job(view: bool, port: int) -> tuple[float, str]:
 
 
 def main() -> None:
+    """Run the benchmark."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=2, help="main-job runs each way")
     parser.add_argument("--skip-graph", action="store_true", help="only the per-tick figures")
