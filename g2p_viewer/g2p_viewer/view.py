@@ -36,20 +36,19 @@ from g2p.urdf import packaged_leg_description, parse_leg_urdf
 from g2p.viewer.replay import replay_bag
 from g2p.viewer.server import LegViewer, ViewerConfig
 from g2p_interfaces.msg import LearnerEvent, Treadmill
-from g2p_ros.contract import JOINT_STATES, TREADMILL
+from g2p_ros.contract import DESCRIPTION_QOS, JOINT_STATES, ROBOT_DESCRIPTION, TREADMILL
 from g2p_ros.params import declare_config
 from g2p_ros.signals import init_with_stop_event, spin_until_stopped
 
 # The rig's samples, best effort: the viewer may drop ticks, the rig never waits for it.
 VIEW_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
-# The learner's events and the rig's description are latched: a viewer started late sees the run so far.
-LATCHED_QOS = QoSProfile(
+# The learner's events are latched (as the rig's description): a viewer started late sees the run so far.
+EVENT_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=1000,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-ROBOT_DESCRIPTION = "robot_description"
 
 
 class ViewerNode(Node):
@@ -63,8 +62,8 @@ class ViewerNode(Node):
         self.viewer = LegViewer(packaged_leg_description(), config)
         self.create_subscription(JointState, JOINT_STATES, self._joint_state, VIEW_QOS)
         self.create_subscription(Treadmill, TREADMILL, self._treadmill, VIEW_QOS)
-        self.create_subscription(String, ROBOT_DESCRIPTION, self._description, LATCHED_QOS)
-        self.create_subscription(LearnerEvent, f"{learner}/events", self._event, LATCHED_QOS)
+        self.create_subscription(String, ROBOT_DESCRIPTION, self._description, DESCRIPTION_QOS)
+        self.create_subscription(LearnerEvent, f"{learner}/events", self._event, EVENT_QOS)
         self.get_logger().info(
             f"Foxglove viewer of {self.get_namespace()} on {self.viewer.url}: open it in Foxglove "
             "(Open connection -> Foxglove WebSocket) with the layout src/g2p/viewer/layout.json"

@@ -109,6 +109,14 @@ def test_the_desired_angles_follow_the_announced_cycle_from_the_first_tick_after
     assert state.scene().desired_foot_path is None  # type: ignore[union-attr]
 
 
+def test_a_start_event_that_comes_after_its_first_ticks_still_counts_them() -> None:
+    state = ViewState(LEG)
+    for k in range(4):  # ticks 1, 2 and 3 come after the start's stamp (0) but before its event
+        state.joint_state(k * TICK_NS, np.zeros(2), np.zeros(2))
+    state.event(event("attempt_start", 1, stamp_ns=0, detail={"desired_cycle_rad": [[0.0, 0.0]] * 5}))
+    assert state.joint_state(4 * TICK_NS, np.zeros(2), np.zeros(2)).tick == 3
+
+
 def test_a_known_first_tick_stamp_starts_the_attempt_there() -> None:
     state = ViewState(LEG)
     first = 5 * TICK_NS

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from g2p.bags.dataset import ROBOT_DESCRIPTION, ROBOT_DESCRIPTION_TYPE
 from g2p.bags.errors import BagReadError
 from g2p.bags.events import LEARNER_EVENT_TYPE, RunEvent, run_event
 from g2p.bags.reader import BagReader
@@ -29,9 +30,6 @@ from g2p.bags.ticks import rig_topic_names, stamp_ns
 from g2p.rig import DEFAULT_NAMESPACE
 from g2p.urdf import parse_leg_urdf
 from g2p.viewer.server import LegViewer
-
-DESCRIPTION_TYPE = "std_msgs/msg/String"
-DESCRIPTION_SUFFIX = "/robot_description"
 
 
 class _AttemptEnds:
@@ -95,10 +93,11 @@ def replay_bag(
         if "joint_states" not in rig:
             raise BagReadError("the bag has no joint states to show", source)
         events = {t.name for t in reader.topics.values() if t.msgtype == LEARNER_EVENT_TYPE}
+        description = f"{rig_namespace.rstrip('/')}/{ROBOT_DESCRIPTION}"
         descriptions = {
             t.name
             for t in reader.topics.values()
-            if t.msgtype == DESCRIPTION_TYPE and t.name == rig_namespace.rstrip("/") + DESCRIPTION_SUFFIX
+            if (t.name, t.msgtype) == (description, ROBOT_DESCRIPTION_TYPE)
         }
         ends = _AttemptEnds(run_event(m.msg, m.timestamp_ns) for m in reader.messages(events))
         start: tuple[float, int] | None = None  # (wall s, rig stamp ns) of the first joint state

@@ -7,7 +7,8 @@ messages.
 
 The desired angles of tick k of an attempt are row k mod N of the desired angles its "attempt_start"
 event carries (detail key "desired_cycle_rad", N x 2: the learner sends one cycle), k counting the joint
-states stamped after that event, as g2p.bags.dataset cuts attempts, or from the stamp in its detail key
+states stamped after that event (those that arrived before it included), as g2p.bags.dataset cuts
+attempts, or from the stamp in its detail key
 "first_tick_stamp_ns" on. Live on hardware, where the rig ticks at baseline until the sequence arrives,
 the first rule puts the desired curve a few ticks (the goal's latency) early; a replay knows each
 attempt's first tick from the bag (g2p.viewer.replay) and is exact.
@@ -29,6 +30,8 @@ BELT_MARK_SPACING_M = 0.05
 # The learner derives "first_tick_stamp_ns" from float seconds, exact to about a microsecond; ticks are
 # 12.8 ms apart, so a millisecond of slack finds the right tick (as g2p.bags.dataset does).
 _STAMP_SLACK_NS = 1_000_000
+# Ticks an attempt's start event may arrive behind its first tick (10 s at 78 Hz).
+_RECENT_TICKS = 780
 # Foot trail: the last second and a half of the foot's path (78 Hz ticks).
 DEFAULT_TRAIL_TICKS = 117
 
@@ -158,6 +161,9 @@ class ViewState:
         self.belt_displacement_mm = 0.0
         self.attempts: list[AttemptSummary] = []
         self._trail: deque[FloatArray] = deque(maxlen=trail_ticks)
+        # Stamps of the latest ticks: an attempt_start that arrives after some of its ticks (events and
+        # ticks come on separate topics) still counts them.
+        self._recent_stamps: deque[int] = deque(maxlen=_RECENT_TICKS)
         self._attempt: _Attempt | None = None
         self._last: JointFrame | None = None
 
@@ -177,6 +183,7 @@ class ViewState:
         q = np.asarray(position_rad, dtype=np.float64).reshape(2)
         foot = forward_kinematics(self.description, q)[3]
         self._trail.append(foot)
+        self._recent_stamps.append(int(stamp_ns))
         desired, tick, number = None, -1, 0
         a = self._attempt
         if a is not None and stamp_ns >= a.first_tick_ns:
@@ -203,7 +210,8 @@ class ViewState:
             path = foot_path(self.description, cycle) if cycle is not None else None
             first = event.detail.get("first_tick_stamp_ns")
             first_ns = first - _STAMP_SLACK_NS if isinstance(first, int) else event.stamp_ns + 1
-            self._attempt = _Attempt(event.attempt, event.phase, first_ns, cycle, path)
+            seen = sum(1 for s in self._recent_stamps if s >= first_ns)
+            self._attempt = _Attempt(event.attempt, event.phase, first_ns, cycle, path, ticks=seen)
             return None
         if event.event != "attempt_end":
             return None
