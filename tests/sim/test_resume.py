@@ -27,9 +27,9 @@ from g2p.sim import MujocoLeg, MujocoLegConfig
 
 CONFIG = LearnerConfig(seed=1, babbling_chunk_s=10.0, babbling=BabblingConfig(duration_s=20.0))
 CYCLE = LimitCycleConfig.treadmill(n_cycles=3)
-# With seed 1 the third attempt crosses 12 mm: 3 exploration then 3 exploitation attempts.
+# With seed 1 one of the first three attempts crosses 12 mm (which one depends on the machine's floating
+# point: torch picks its kernels by CPU), then 3 exploitation attempts.
 SEARCH = SearchConfig(threshold_mm=12.0, exploitation_attempts=3)
-N_ATTEMPTS = 6
 
 
 def babbled() -> tuple[TreadmillRun, PlantRig]:
@@ -170,10 +170,12 @@ def test_a_restored_run_continues_exactly_as_the_uninterrupted_one(k: int) -> No
     assert state(restored) == state(run)
     assert capture(restored).to_json() == text
     # The restored run goes on on the original's plant; the twin never stopped.
+    phase = restored.search.phase
+    assert phase is (Phase.EXPLORATION if k == 0 else Phase.EXPLOITATION)  # a checkpoint in each phase
     continued, uninterrupted = finish(restored, rig), finish(twin, twin_rig)
-    assert len(continued) == N_ATTEMPTS - k
-    assert [c[0] for c in continued] == list(range(k + 1, N_ATTEMPTS + 1))
-    assert {c[1] for c in continued} == ({Phase.EXPLORATION} if k == 0 else set()) | {Phase.EXPLOITATION}
+    assert continued, "the restored run had nothing left to do"
+    assert [c[0] for c in continued] == list(range(k + 1, k + len(continued) + 1))
+    assert Phase.EXPLOITATION in {c[1] for c in continued}
     assert continued == uninterrupted
     assert state(restored) == state(twin)
 
