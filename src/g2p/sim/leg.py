@@ -103,16 +103,39 @@ class MujocoLeg:
         mujoco.mj_setState(self._model, self._data, self._rest_state, _STATE)
         mujoco.mj_forward(self._model, self._data)
         self._diverged = False
-        self._prev_angle = self._read_angles()
-        act = self._data.act.copy()
-        current = act * self._i_max
-        return self._sample(
-            act=self._baseline.copy(),
-            angle=self._prev_angle,
-            velocity=np.zeros(2),
-            current=current,
-            power=electrical_power_w(current, np.zeros(N_MOTORS), self._leg.motor),
-        )
+        return self._still_sample()
+
+    def reset_episode(self, rng: np.random.Generator, noise_scale: float) -> TickSample:
+        """Start an episode as a fresh rig would: `reset`, meters at 0, joints perturbed, jitter from `rng`.
+
+        For reinforcement learning (g2p.envs): the belt odometer and the energy meters read 0 again, so that
+        an episode's numbers do not depend on the ones before it (the same generator state gives the same
+        episode, bit for bit); the joint angles move by U(-noise_scale, noise_scale) rad and the joint
+        velocities by noise_scale * N(0, 1) rad/s, as in Gymnasium's MuJoCo environments; the tick jitter is
+        drawn from `rng` from now on. The clock runs on.
+
+        Args:
+            rng: the generator of the perturbation and, from now on, of the tick jitter.
+            noise_scale: scale of the perturbation (rad, rad/s); 0 = the resting posture exactly.
+
+        Returns:
+            A sample at the perturbed posture (the velocity reads 0: the encoders have no history yet).
+
+        Raises:
+            ValueError: `noise_scale` is negative or not finite.
+        """
+        if not (math.isfinite(noise_scale) and noise_scale >= 0):
+            raise ValueError(f"noise_scale: must be finite and >= 0, got {noise_scale}")
+        self.reset()
+        self._belt_base_m = -self._belt_rest_m
+        self._energy_j[:] = 0.0
+        self._clock = TickClock(rng, self.config.tick_hz, self.config.tick_jitter_s)
+        leg = self._leg
+        if noise_scale > 0:
+            self._qpos[leg.joint_qpos] += rng.uniform(-noise_scale, noise_scale, size=leg.joint_qpos.shape)
+            self._qvel[leg.joint_dof] += noise_scale * rng.standard_normal(leg.joint_dof.shape)
+            mujoco.mj_forward(self._model, self._data)
+        return self._still_sample()
 
     def step(self, activation: FloatArray) -> TickSample:
         """Apply activations for one tick and return the tick's sample.
@@ -241,6 +264,18 @@ class MujocoLeg:
         state = np.empty(mujoco.mj_stateSize(model, _STATE))
         mujoco.mj_getState(model, data, state, _STATE)
         return state
+
+    def _still_sample(self) -> TickSample:
+        """A sample of the present state with no tick behind it: baseline, encoder velocity 0."""
+        self._prev_angle = self._read_angles()
+        current = self._data.act * self._i_max
+        return self._sample(
+            act=self._baseline.copy(),
+            angle=self._prev_angle,
+            velocity=np.zeros(2),
+            current=current,
+            power=electrical_power_w(current, np.zeros(N_MOTORS), self._leg.motor),
+        )
 
     def _read_angles(self) -> FloatArray:
         return quantize_angle(self._qpos[self._leg.joint_qpos], self.config.encoder_bits)

@@ -43,6 +43,7 @@ class LegModel:
         model: the compiled MuJoCo model.
         motor: the motors' electrical constants (from the model's custom numerics).
         joint_qpos: qpos addresses of the proximal and distal joints, shape (2,).
+        joint_dof: dof addresses of the proximal and distal joints, shape (2,).
         spool_qpos: qpos addresses of the three spool joints (M0, M1, M2), shape (3,).
         spool_dof: dof addresses of the three spool joints, shape (3,).
         belt_qpos: qpos address of the belt slide joint.
@@ -54,6 +55,7 @@ class LegModel:
     model: mujoco.MjModel
     motor: MotorConstants
     joint_qpos: IntArray
+    joint_dof: IntArray
     spool_qpos: IntArray
     spool_dof: IntArray
     belt_qpos: int
@@ -159,6 +161,7 @@ def load_leg_model(path: Path, carriage_height_m: float) -> LegModel:
         model=model,
         motor=motor,
         joint_qpos=np.array([model.jnt_qposadr[j] for j in joints], dtype=np.intp),
+        joint_dof=np.array([model.jnt_dofadr[j] for j in joints], dtype=np.intp),
         spool_qpos=np.array([model.jnt_qposadr[j] for j in spools], dtype=np.intp),
         spool_dof=np.array([model.jnt_dofadr[j] for j in spools], dtype=np.intp),
         belt_qpos=int(model.jnt_qposadr[belt]),
