@@ -14,6 +14,8 @@ import pytest
 # Fast DDS must never send discovery traffic beyond loopback, in this process and its children.
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+# MuJoCo's offscreen renderer (the environments' render()) without a display: EGL, before mujoco loads.
+os.environ.setdefault("MUJOCO_GL", "egl")
 
 
 def _claim_domain_id() -> int:
