@@ -390,6 +390,30 @@ def test_reset_returns_the_same_rest_and_keeps_odometer_energy_and_clock() -> No
     )
 
 
+def test_reset_episode_starts_a_fresh_rig_and_perturbs_the_joints() -> None:
+    """Meters at 0, the same episode for the same generator state, the documented perturbation."""
+    plant = MujocoLeg()
+    rest = plant.reset()
+    seq = np.tile(propulsive_cycle(), (2, 1))
+    run_sequence(plant, seq)  # moves the odometer and the energy meters
+    start = plant.reset_episode(np.random.default_rng(3), 0.0)
+    np.testing.assert_array_equal(start.position_rad, rest.position_rad)
+    assert start.belt_mm == 0.0 and np.all(start.energy_j == 0.0)
+    first = run_sequence(plant, seq)
+    plant.reset_episode(np.random.default_rng(3), 0.0)
+    again = run_sequence(plant, seq)
+    for f in fields(Recording):  # bit for bit, not only close; the clock runs on
+        if f.name != "t_s":
+            np.testing.assert_array_equal(getattr(again, f.name), getattr(first, f.name), err_msg=f.name)
+    np.testing.assert_allclose(np.diff(again.t_s), np.diff(first.t_s), rtol=1e-12)  # the same periods
+    noisy = plant.reset_episode(np.random.default_rng(4), 0.01)
+    offset = noisy.position_rad - rest.position_rad
+    assert np.all(np.abs(offset) <= 0.01 + encoder_step_rad(14)) and np.any(offset != 0.0)
+    np.testing.assert_array_equal(noisy.velocity_rad_s, [0.0, 0.0])  # no encoder history yet
+    with pytest.raises(ValueError, match="noise_scale"):
+        plant.reset_episode(np.random.default_rng(0), -1.0)
+
+
 def test_same_seed_same_commands_give_bit_identical_samples() -> None:
     seq = babble(np.random.default_rng(11), 300)
     a, b, c = (MujocoLeg(MujocoLegConfig(seed=seed)) for seed in (4, 4, 5))
