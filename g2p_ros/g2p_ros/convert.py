@@ -65,6 +65,44 @@ def tick_messages(
     return joints, treadmill, power, applied
 
 
+def tick_sample(
+    joints: JointState, treadmill: Treadmill, power: MotorPower, applied: MotorActivation
+) -> TickSample:
+    """The sample of one tick from its four messages (the inverse of `tick_messages`).
+
+    `t_s` is the shared header stamp in seconds, as `recording_from_msg` gives it (stamp ns * 1e-9);
+    `activation` is the applied activation.
+
+    Raises:
+        ValueError: the stamps differ, the joints are not named `JOINT_NAMES` in order, or a field has the
+            wrong number of values.
+    """
+    stamps = {(m.header.stamp.sec, m.header.stamp.nanosec) for m in (joints, treadmill, power, applied)}
+    if len(stamps) != 1:
+        raise ValueError(f"a tick's four messages must share one stamp, got {sorted(stamps)}")
+    if tuple(joints.name) != JOINT_NAMES:
+        raise ValueError(f"JointState.name: expected {list(JOINT_NAMES)}, got {list(joints.name)}")
+    ((sec, nanosec),) = stamps
+
+    def values(v: object, n: int, name: str) -> np.ndarray:
+        a = np.asarray(v, dtype=np.float64)
+        if a.shape != (n,):
+            raise ValueError(f"{name}: expected {n} values, got {a.size}")
+        return a
+
+    return TickSample(
+        t_s=(sec * 1_000_000_000 + nanosec) * 1e-9,
+        activation=values(applied.activation, N_MOTORS, "MotorActivation.activation"),
+        position_rad=values(joints.position, N_JOINTS, "JointState.position"),
+        velocity_rad_s=values(joints.velocity, N_JOINTS, "JointState.velocity"),
+        belt_mm=float(treadmill.displacement_mm),
+        belt_velocity_mm_s=float(treadmill.velocity_mm_s),
+        current_a=values(power.current_a, N_MOTORS, "MotorPower.current_a"),
+        power_w=values(power.power_w, N_MOTORS, "MotorPower.power_w"),
+        energy_j=values(power.energy_j, N_MOTORS, "MotorPower.energy_j"),
+    )
+
+
 # TickSample's numeric fields, in the order TickSerializer takes their values.
 _TICK_FIELDS = tuple(f.name for f in fields(TickSample) if f.name != "t_s")
 # Stamp sentinels (int32 sec, uint32 nanosec) for the templates; their bytes appear nowhere else.

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from rclpy.action import ActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.client import Client
 from rclpy.node import Node
 from rclpy.task import Future
 from std_srvs.srv import Trigger
@@ -107,13 +108,7 @@ class RigClient:
             RigBusy: the rig refused because a sequence still plays.
             RigError: the reset failed on the rig.
         """
-        if not self._reset_watch.wait_until_ready(self._server_timeout_s):
-            raise RigUnreachable(f"no rig answers {self._reset.srv_name} within {self._server_timeout_s} s")
-        response = _wait(self._reset.call_async(Trigger.Request()), self._reset_timeout_s, "reset")
-        if not response.success:
-            if "in progress" in response.message:
-                raise RigBusy(f"rig reset refused: {response.message}")
-            raise RigError(f"rig reset failed: {response.message}")
+        call_reset(self._reset, self._reset_watch, self._server_timeout_s, self._reset_timeout_s)
 
     def play(
         self,
@@ -247,6 +242,31 @@ class RigClient:
         if len(recording) != ticks:
             raise RigError(f"rig played {len(recording)} of {ticks} ticks: {result.message}")
         return recording
+
+
+def call_reset(
+    client: Client, watch: contract.ServerWatch, server_timeout_s: float, timeout_s: float
+) -> None:
+    """Call the rig's reset service and wait until the rig is at rest (RigClient.reset, TickPlant.reset).
+
+    Args:
+        client: the Trigger client of the rig's reset service.
+        watch: its ServerWatch.
+        server_timeout_s: how long to wait for the service to appear (s).
+        timeout_s: longest wait for the reset to complete (s).
+
+    Raises:
+        RigUnreachable: the rig is not on the graph or did not answer within `timeout_s`.
+        RigBusy: the rig refused because a sequence still plays.
+        RigError: the reset failed on the rig.
+    """
+    if not watch.wait_until_ready(server_timeout_s):
+        raise RigUnreachable(f"no rig answers {watch.name} within {server_timeout_s} s")
+    response: Any = _wait(client.call_async(Trigger.Request()), timeout_s, "reset")
+    if not response.success:
+        if "in progress" in response.message:
+            raise RigBusy(f"rig reset refused: {response.message}")
+        raise RigError(f"rig reset failed: {response.message}")
 
 
 def _wait(future: Future, timeout_s: float, what: str) -> object:

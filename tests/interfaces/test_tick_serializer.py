@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message
+from std_msgs.msg import Header
 
 from g2p.bags.interfaces import InterfaceLibrary, TypeRegistry, ament_share_dirs
 from g2p.plant import TickSample
-from g2p_ros.convert import TickSerializer, stamp_ns, tick_messages, time_from_ns
+from g2p_ros.convert import TickSerializer, stamp_ns, tick_messages, tick_sample, time_from_ns
 
 
 def _sample(rng: np.random.Generator, t_s: float) -> TickSample:
@@ -76,3 +79,35 @@ def test_every_value_lands_in_its_field() -> None:
     for msg in (joints, treadmill, power, applied):
         assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1, 500_000_000)
         assert msg.header.frame_id == "leg"
+
+
+@pytest.mark.parametrize("t_s", [0.0, 12.820513, 1_795_000_000.999999999])
+def test_tick_sample_reads_back_the_published_messages(t_s: float) -> None:
+    """What TickPlant reads off the rig topics is the sample the rig published, bit for bit."""
+    serializer = TickSerializer()
+    sample = _sample(np.random.default_rng(3), t_s)
+    ns = stamp_ns(t_s)
+    messages = [
+        deserialize_message(data, type(msg))
+        for data, msg in zip(
+            serializer.serialize(sample, ns), tick_messages(sample, time_from_ns(0)), strict=True
+        )
+    ]
+    back = tick_sample(*messages)
+    assert back.t_s == ns * 1e-9
+    for field in dataclasses.fields(TickSample):
+        if field.name != "t_s":
+            np.testing.assert_array_equal(getattr(back, field.name), getattr(sample, field.name), field.name)
+
+
+def test_tick_sample_refuses_messages_of_different_ticks() -> None:
+    sample = _sample(np.random.default_rng(4), 1.0)
+    joints, treadmill, power, applied = tick_messages(sample, time_from_ns(1_000_000_000))
+    # A header of its own: tick_messages gives the four messages one Header object.
+    treadmill.header = Header(stamp=time_from_ns(1_012_820_513), frame_id="leg")
+    with pytest.raises(ValueError, match="share one stamp"):
+        tick_sample(joints, treadmill, power, applied)
+    joints, treadmill, power, applied = tick_messages(sample, time_from_ns(1_000_000_000))
+    joints.name = ["distal", "proximal"]
+    with pytest.raises(ValueError, match=r"JointState\.name"):
+        tick_sample(joints, treadmill, power, applied)
