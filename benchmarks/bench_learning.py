@@ -1,6 +1,6 @@
 """The paper's experiments on the MuJoCo rig, in-process, over many seeds: learning quality and speed.
 
-    scripts/with-env python benchmarks/bench_learning.py --seeds 15 --jobs 2 --out docs/results
+    scripts/with-env python benchmarks/bench_learning.py --seeds 15 --workers 2 --out docs/results
 
 Runs, for each seed, on a fresh simulated rig (MujocoLeg) with the default configuration:
   treadmill: 5 min of babbling, then exploration until 64 mm and 15 exploitation attempts (paper Fig 4);
@@ -11,7 +11,10 @@ Runs, for each seed, on a fresh simulated rig (MujocoLeg) with the default confi
       trajectories when it is fitted on their own data, a bound for the generalization figure: the
       babbling-only map plays the 30 test trajectories; a map fitted afresh on babbling + those attempts
       plays them again; a third map, fitted on all of it, plays them once more.
-Writes results.json and figures into --out, and prints a markdown table beside the paper's figures.
+Writes results.json, results.csv (one row per experiment x seed) and figures into --out, and prints a
+markdown table beside the paper's figures. The runs fan out on Ray (g2p.sweep): a local Ray using
+--workers CPUs (default: all), or a cluster by --address HOST:6379 (or RAY_ADDRESS). A run that fails is
+left out of the figures and written to failures.json; the benchmark then exits with status 1.
 
 Variants for measurements (docs/ALGORITHM.md, "Tracking on the simulated rig"):
     --set preprocess.command_lead_ticks=2 --set inverse_map.normalization=zscore   (LearnerConfig fields)
@@ -25,8 +28,8 @@ from __future__ import annotations
 import argparse
 import ast
 import json
+import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
@@ -44,6 +47,7 @@ from g2p.rig import PlantRig
 from g2p.search import SearchConfig
 from g2p.seeds import seed_streams
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, MujocoLeg, MujocoLegConfig
+from g2p.sweep import SweepResult, ray_session, run_sweep
 
 PAPER = {
     "crossed": "15/15",
@@ -284,11 +288,24 @@ def plot(results: dict[str, list[dict[str, Any]]], out: Path) -> None:
         plt.close(fig)
 
 
+RUNNERS = {"treadmill": treadmill, "air": air, "generalization": general, "bound": bound}
+
+
+def run_experiment(experiment: str, seed: int, setup: Setup) -> dict[str, Any]:
+    """One job of the sweep: one seed of one experiment."""
+    return RUNNERS[experiment](seed, setup)
+
+
 def main() -> None:
     """Run the experiments over the seeds and write the results."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=15)
-    parser.add_argument("--jobs", type=int, default=2, help="worker processes")
+    parser.add_argument(
+        "--workers", type=int, default=None, help="local Ray: CPUs to use, one run each (default: all)"
+    )
+    parser.add_argument(
+        "--address", default=None, help="a Ray cluster's HOST:6379 (default: RAY_ADDRESS, else a local Ray)"
+    )
     parser.add_argument("--experiments", default="treadmill,air,generalization")
     parser.add_argument("--out", type=Path, default=Path("docs/results"))
     parser.add_argument(
@@ -304,41 +321,67 @@ def main() -> None:
     parser.add_argument("--model", default="", help="MJCF of the simulated rig (default: the packaged leg)")
     parser.add_argument("--train", type=int, default=30, help="generalization training trajectories")
     args = parser.parse_args()
+    experiments = args.experiments.split(",")
+    unknown = [name for name in experiments if name not in RUNNERS]
+    if unknown:
+        parser.error(f"unknown experiments {unknown}; choose from {sorted(RUNNERS)}")
     args.out.mkdir(parents=True, exist_ok=True)
-    setup = Setup(tuple(args.overrides), args.model, args.train)
+    # Absolute: Ray's workers need not share this working directory (on a cluster, the file must exist
+    # at that path on every node).
+    model_path = str(Path(args.model).resolve()) if args.model else ""
+    setup = Setup(tuple(args.overrides), model_path, args.train)
     try:  # a bad override fails here, with its name, not in a worker
         setup.learner_config(0)
         setup.cycle()
     except (TypeError, ValueError) as err:
         parser.error(str(err))
-    runners = {
-        "treadmill": partial(treadmill, setup=setup),
-        "air": partial(air, setup=setup),
-        "generalization": partial(general, setup=setup),
-        "bound": partial(bound, setup=setup),
-    }
     results: dict[str, list[dict[str, Any]]] = {}
     wall_s: dict[str, float] = {}
-    with ProcessPoolExecutor(args.jobs) as pool:
-        for name in args.experiments.split(","):
-            t0 = time.perf_counter()
-            results[name] = list(pool.map(runners[name], range(args.seeds)))
-            wall_s[name] = time.perf_counter() - t0
-            print(f"{name}: {args.seeds} seeds in {wall_s[name]:.0f} s", flush=True)
+    sweeps: list[SweepResult] = []
+    with ray_session(args.address, args.workers) as workers:
+        for name in experiments:
+            sweep = run_sweep(
+                partial(run_experiment, setup=setup),
+                [{"experiment": name, "seed": seed} for seed in range(args.seeds)],
+                desc=name,
+            )
+            sweeps.append(sweep)
+            results[name] = [{k: v for k, v in row.items() if k != "experiment"} for row in sweep.rows]
+            wall_s[name] = sweep.wall_s
+            failed = f", {len(sweep.failures)} failed" if sweep.failures else ""
+            print(f"{name}: {args.seeds} seeds in {wall_s[name]:.0f} s{failed}", flush=True)
     summary = summarize(results)
     summary["wall_s"] = {**wall_s, "total": sum(wall_s.values())}
-    summary["jobs"] = args.jobs
+    summary["workers"] = workers
     config = {
         "overrides": [list(o) for o in setup.overrides],
-        "model": setup.model_path,
+        "model": args.model,
         "train": setup.n_train,
     }
     (args.out / "results.json").write_text(
         json.dumps({"summary": summary, "paper": PAPER, "setup": config, "runs": results}, indent=1)
     )
+    table = SweepResult(
+        rows=[row for s in sweeps for row in s.rows],
+        failures=[f for s in sweeps for f in s.failures],
+        wall_s=summary["wall_s"]["total"],
+        workers=workers,
+        param_columns=("experiment", "seed"),
+    )
+    table.write_csv(args.out / "results.csv")
+    failures_path = args.out / "failures.json"
+    if table.failures:
+        table.write_failures(failures_path)
+    else:
+        failures_path.unlink(missing_ok=True)  # a previous run's
     plot(results, args.out)
     for key, value in summary.items():
         print(f"| {key} | {value} | {PAPER.get(key, '')} |")
+    for failure in table.failures:
+        print(f"failed: {failure.params}: {failure.error}", file=sys.stderr)
+    if table.failures:
+        print(f"{len(table.failures)} runs failed: {failures_path}", file=sys.stderr)
+        sys.exit(1)
 
 
 if __name__ == "__main__":
