@@ -19,7 +19,6 @@ import json
 import logging
 import os
 import sys
-import tempfile
 import time
 import traceback
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -30,6 +29,8 @@ from typing import Any
 
 import numpy as np
 
+from g2p.files import write_text_atomically
+
 __all__ = ["JobFailure", "SweepResult", "ray_session", "run_sweep"]
 
 # Written by run_sweep's own Ray only. Ray keeps its servers on the node's address, and turns
@@ -38,7 +39,6 @@ __all__ = ["JobFailure", "SweepResult", "ray_session", "run_sweep"]
 _LOCAL_ENV = {"RAY_USAGE_STATS_ENABLED": "0", "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0"}
 # Ray's own ray.init sets this one for the process (token authentication); put back with the others.
 _RAY_SETS = ("RAY_AUTH_MODE",)
-_FILE_MODE = 0o644  # tables are for anyone to read; mkstemp would leave them private (0600)
 
 
 @dataclass(frozen=True)
@@ -102,7 +102,7 @@ class SweepResult:
         writer.writeheader()
         for row in self.rows:
             writer.writerow({k: _cell(row[k]) for k in columns if k in row})
-        return _write_atomically(Path(path), text.getvalue())
+        return write_text_atomically(Path(path), text.getvalue())
 
     def write_failures(self, path: str | os.PathLike[str]) -> Path:
         """Write the failures as a JSON list of {"params", "error", "traceback"}, atomically.
@@ -114,7 +114,7 @@ class SweepResult:
             The path written.
         """
         failures = [asdict(f) for f in self.failures]
-        return _write_atomically(Path(path), json.dumps(failures, indent=1, default=_json_default) + "\n")
+        return write_text_atomically(Path(path), json.dumps(failures, indent=1, default=_json_default) + "\n")
 
 
 @dataclass(frozen=True)
@@ -331,22 +331,3 @@ def _json_default(value: Any) -> Any:
     if isinstance(value, (np.ndarray, np.generic)):
         return value.tolist()
     return str(value)
-
-
-def _write_atomically(path: Path, text: str) -> Path:
-    """Write `text` to a temporary file beside `path`, then rename it over `path`.
-
-    g2p.bags.files does the same, but importing it loads the bag libraries (the `bags` extra).
-    """
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent)
-    tmp = Path(name)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(text)
-        os.chmod(tmp, _FILE_MODE)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path

@@ -14,7 +14,7 @@ floor(min(S, max_seconds) fps) + 1 when limited. Each frame lasts 1 / fps s, so 
 rig time. GIF through matplotlib's PillowWriter (pillow comes with matplotlib; the default, and
 byte-for-byte the same from the same bag), or MP4 through FFMpegWriter when ffmpeg is installed. The
 file is rendered to a temporary file in the target's directory and renamed over the target
-(g2p.bags.files.write_atomically).
+(g2p.files.write_atomically).
 """
 
 from __future__ import annotations
@@ -33,8 +33,8 @@ from PIL import Image
 
 from g2p.bags.dataset import AttemptData
 from g2p.bags.events import FloatArray
-from g2p.bags.files import write_atomically
 from g2p.description import LegDescription, forward_kinematics
+from g2p.files import write_atomically
 from g2p.plant import JOINT_NAMES
 
 FRAMES_PER_SECOND = 10

@@ -19,11 +19,11 @@ from pathlib import Path
 from g2p.bags import animation, plots
 from g2p.bags.dataset import AttemptData, RunData, load_run
 from g2p.bags.errors import BagError
-from g2p.bags.files import write_text_atomically
 from g2p.bags.index_page import IndexEntry, index_html
 from g2p.bags.runs import report_dir, summary_path
 from g2p.bags.summary import find_joint_limits, find_threshold, summarize, summary_markdown
 from g2p.description import LegDescription
+from g2p.files import write_text_atomically
 from g2p.rig import DEFAULT_NAMESPACE
 from g2p.urdf import UrdfError, packaged_leg_description
 

@@ -1,4 +1,4 @@
-"""Atomic writes of the report's files: a reader sees the old file or the new one, never a partial one."""
+"""Atomic file writes (reports, sweep tables): a reader sees the old file or the new one, never half."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-# Report files are for anyone to open; mkstemp would leave them private (0600).
+# Written files are for anyone to open; mkstemp would leave them private (0600).
 _FILE_MODE = 0o644
 
 
