@@ -1,6 +1,6 @@
 """Closed-loop G2P (g2p.closed_loop) against the paper's open loop on the MuJoCo rig, over many seeds.
 
-    scripts/with-env python benchmarks/bench_closed_loop.py --seeds 15 --jobs 2 --out docs/results
+    scripts/with-env python benchmarks/bench_closed_loop.py --seeds 15 --workers 2 --out docs/results
 
 Experiments (`--experiments`, comma-separated; default air,treadmill):
   sweep: the feedback gains on the air task: per seed, the babbling-only map (5 min of babbling in the air,
@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -38,6 +38,7 @@ from g2p.experiments import random_features
 from g2p.learner import LearnerConfig
 from g2p.plant import NOMINAL_TICK_HZ
 from g2p.seeds import seed_streams
+from g2p.sweep import JobFailure, ray_session, run_sweep
 
 KNEE_SCALE = 1.5
 """The distal joint's P and I gains are the proximal's times this (the follow-up's P: 10, 15)."""
@@ -123,9 +124,9 @@ def _clip_shares(outcome: AttemptOutcome, fb: FeedbackConfig) -> tuple[float, fl
     return float(np.mean(at_correction)), float(np.mean(at_integral)) if uses_integral else 0.0
 
 
-def _sweep_task(task: tuple[int, int]) -> dict[str, Any]:
+def _sweep_task(seed: int, delay_ticks: int, stage: str) -> dict[str, Any]:
     """One seed and one delay of the sweep: the babbling-only map on the sweep's trajectories."""
-    seed, delay, stage = task
+    delay = delay_ticks
     t0 = time.perf_counter()
     learner, rig, cycle = _air_learner(seed, Setup())
     inverse_map = learner.frozen_map()
@@ -290,9 +291,8 @@ def air(seed: int) -> dict[str, Any]:
     return out
 
 
-def treadmill_run(task: tuple[int, str]) -> dict[str, Any]:
+def treadmill_run(seed: int, control: str) -> dict[str, Any]:
     """bench_learning's treadmill run, open loop or closed loop with the chosen gains."""
-    seed, control = task
     setup = LoopSetup(feedback=CHOSEN_GAINS[0] if control == "closed" else None)
     return {"control": control, **treadmill(seed, setup)}
 
@@ -468,23 +468,33 @@ def main() -> None:
     """Run the experiments over the seeds and write the results."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=15)
-    parser.add_argument("--jobs", type=int, default=2, help="worker processes")
+    parser.add_argument("--workers", type=int, default=None, help="local Ray: CPUs to use (default: all)")
+    parser.add_argument("--address", default=None, help="a Ray cluster (default: RAY_ADDRESS, else local)")
     parser.add_argument("--experiments", default="air,treadmill")
     parser.add_argument("--out", type=Path, default=Path("docs/results"))
     parser.add_argument("--sweep-stages", default="coarse,fine", help="coarse, fine or both")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     names = args.experiments.split(",")
-    with ProcessPoolExecutor(args.jobs) as pool:
+    failures: list[JobFailure] = []
+
+    def sweep(fn: Any, jobs: list[dict[str, Any]], desc: str) -> list[dict[str, Any]]:
+        result = run_sweep(fn, jobs, desc=desc)
+        failures.extend(result.failures)
+        return result.rows
+
+    results: dict[str, list[dict[str, Any]]] = {}
+    wall_s: dict[str, float] = {}
+    with ray_session(args.address, args.workers) as workers:
         if "sweep" in names:
             t0 = time.perf_counter()
             tasks = [
-                (s, d, stage)
+                {"seed": s, "delay_ticks": d, "stage": stage}
                 for stage in args.sweep_stages.split(",")
                 for d in SWEEP_DELAYS
                 for s in range(args.seeds)
             ]
-            done = list(pool.map(_sweep_task, tasks))
+            done = sweep(_sweep_task, tasks, "sweep")
             wall = time.perf_counter() - t0
             rows = summarize_sweep(done)
             (args.out / "closed_loop_sweep.json").write_text(
@@ -495,24 +505,24 @@ def main() -> None:
             )
             print(f"sweep: {args.seeds} seeds in {wall:.0f} s", flush=True)
             print(print_sweep(rows), flush=True)
-        results: dict[str, list[dict[str, Any]]] = {}
-        wall_s: dict[str, float] = {}
         if "air" in names:
             t0 = time.perf_counter()
-            results["air"] = list(pool.map(air, range(args.seeds)))
+            results["air"] = sweep(air, [{"seed": s} for s in range(args.seeds)], "air")
             wall_s["air"] = time.perf_counter() - t0
             print(f"air: {args.seeds} seeds in {wall_s['air']:.0f} s", flush=True)
         if "treadmill" in names:
             t0 = time.perf_counter()
-            tasks = [(s, c) for s in range(args.seeds) for c in ("open", "closed")]
-            results["treadmill"] = list(pool.map(treadmill_run, tasks))
+            tasks = [{"seed": s, "control": c} for s in range(args.seeds) for c in ("open", "closed")]
+            results["treadmill"] = sweep(treadmill_run, tasks, "treadmill")
             wall_s["treadmill"] = time.perf_counter() - t0
             print(f"treadmill: {args.seeds} seeds x 2 in {wall_s['treadmill']:.0f} s", flush=True)
+    for failure in failures:
+        print(f"FAILED {failure.params}: {failure.error}", file=sys.stderr)
     if not results:
         return
     summary = summarize(results)
     summary["wall_s"] = {**wall_s, "total": sum(wall_s.values())}
-    summary["jobs"] = args.jobs
+    summary["workers"] = workers
     laws = {name: _describe(fb) for name, fb in air_laws().items()}
     (args.out / "closed_loop.json").write_text(
         json.dumps(
@@ -530,6 +540,8 @@ def main() -> None:
     )
     print("figures:", ", ".join(plot(results, args.out)))
     print(table(summary))
+    if failures:
+        sys.exit(1)
 
 
 if __name__ == "__main__":
