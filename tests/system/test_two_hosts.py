@@ -301,6 +301,9 @@ def test_a_recorder_killed_mid_run_leaves_a_recoverable_bag_and_an_undisturbed_r
     sim, recorder = rig_nodes(g, "-p", "time_mode:=fast", "-p", "rig.fast_max_real_time_factor:=5.0")
     learner = g.node("ws", "g2p_learner", "learn", *learner_args(RUN, sim_time=True))
     learner.wait_for_attempt(2)
+    # Attempts here last under a second of wall time: wait out the recorder's chunk_period_s (1 s), the
+    # most a killed recorder may lose, so that attempt 1's end is on disk whatever the machine's pace.
+    time.sleep(2.0)
     recorder.stop(signal.SIGKILL)
     assert learner.wait(300) == 0, learner.log()  # the run does not need its recorder once started
     assert learner.attempts_done() >= 5
