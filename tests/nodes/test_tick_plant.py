@@ -191,8 +191,9 @@ def test_realtime_a_command_takes_effect_a_tick_later_and_the_watchdog_drops_a_s
     # a pause longer than the watchdog gives baseline: how often depends on the machine's load.
     previous = np.vstack([[BASELINE] * 3, commands[:-1]])
     assert np.all(applied == previous, axis=1).any()
-    period = np.diff([s.t_s for s in samples[1:]])
-    assert np.median(period) == pytest.approx(1 / 78, abs=1e-3)  # one tick per step, paced by the rig
+    # Each step gets a tick of its own, later than the last (paced by the rig: bench_tick_plant measures
+    # how long a step takes; a test does not fail on a slow machine).
+    assert np.all(np.diff([s.t_s for s in samples]) > 0)
     # The last command was dropped by the watchdog during the pause: baseline (or, rarely, the new one).
     assert late.activation.tolist() in ([BASELINE] * 3, [0.3] * 3)
 
