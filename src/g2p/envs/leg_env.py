@@ -101,8 +101,6 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(n_obs,), dtype=np.float64)
         self.ticks = 0
         """Ticks played in the current episode."""
-        self.total_ticks = 0
-        """Ticks played since the environment was made, over all episodes (rig time x tick rate)."""
         self._last: TickSample | None = None
 
     @property
@@ -159,7 +157,6 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
             samples.append(self.plant.step(a))
         self._last = samples[-1]
         self.ticks += self.frame_skip
-        self.total_ticks += self.frame_skip
         reward, terms = self._reward(samples, first)
         truncated = self.ticks >= self.episode_ticks
         return self._observation(), reward, False, truncated, self._info(terms)
