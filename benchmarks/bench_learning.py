@@ -20,6 +20,7 @@ Variants for measurements (docs/ALGORITHM.md, "Tracking on the simulated rig"):
     --set preprocess.command_lead_ticks=2 --set inverse_map.normalization=zscore   (LearnerConfig fields)
     --set "cycle.radius_rad=(-0.8, 0.75)"   (LimitCycleConfig fields: centre, spoke scale, period)
     --model path/to/leg.xml     (another MJCF for the simulated rig)
+    --calibration paper         (a calibration of the simulated rig: a file or a packaged name)
     --train 15                  (generalization training trajectories; the paper's 30 by default)
 """
 
@@ -69,11 +70,13 @@ class Setup:
             "cycle" for the limit cycles (LimitCycleConfig).
         model_path: MJCF of the simulated rig; "" = the packaged leg.
         n_train: generalization training trajectories (paper: 30).
+        calibration: calibration of the simulated rig (MujocoLegConfig.calibration); "" = none.
     """
 
     overrides: tuple[tuple[str, str, Any], ...] = ()
     model_path: str = ""
     n_train: int = 30
+    calibration: str = ""
 
     def learner_config(self, seed: int) -> LearnerConfig:
         """The default LearnerConfig with this setup's overrides."""
@@ -92,7 +95,7 @@ class Setup:
 
     def plant(self, seed: int, carriage_height_m: float | None = None) -> PlantRig:
         """A fresh simulated rig for one seed."""
-        cfg = MujocoLegConfig(seed=seed, model_path=self.model_path)
+        cfg = MujocoLegConfig(seed=seed, model_path=self.model_path, calibration=self.calibration)
         if carriage_height_m is not None:
             cfg = replace(cfg, carriage_height_m=carriage_height_m)
         return PlantRig(MujocoLeg(cfg))
@@ -320,6 +323,9 @@ def main() -> None:
     )
     parser.add_argument("--model", default="", help="MJCF of the simulated rig (default: the packaged leg)")
     parser.add_argument("--train", type=int, default=30, help="generalization training trajectories")
+    parser.add_argument(
+        "--calibration", default="", help="calibration of the simulated rig: a YAML file or a packaged name"
+    )
     args = parser.parse_args()
     experiments = args.experiments.split(",")
     unknown = [name for name in experiments if name not in RUNNERS]
@@ -329,7 +335,10 @@ def main() -> None:
     # Absolute: Ray's workers need not share this working directory (on a cluster, the file must exist
     # at that path on every node).
     model_path = str(Path(args.model).resolve()) if args.model else ""
-    setup = Setup(tuple(args.overrides), model_path, args.train)
+    calibration = args.calibration
+    if calibration and Path(calibration).is_file():
+        calibration = str(Path(calibration).resolve())
+    setup = Setup(tuple(args.overrides), model_path, args.train, calibration)
     try:  # a bad override fails here, with its name, not in a worker
         setup.learner_config(0)
         setup.cycle()
@@ -356,6 +365,7 @@ def main() -> None:
     config = {
         "overrides": [list(o) for o in setup.overrides],
         "model": args.model,
+        "calibration": args.calibration,
         "train": setup.n_train,
     }
     (args.out / "results.json").write_text(

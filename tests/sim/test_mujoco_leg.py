@@ -24,7 +24,7 @@ from g2p.sim import (
     encoder_step_rad,
     packaged_model_path,
 )
-from g2p.sim.config import DEFAULT_BELT_DRAG_N
+from g2p.sim.calibration import LegCalibration
 from tests.sim.helpers import babble, hold
 
 TICK = 1.0 / NOMINAL_TICK_HZ
@@ -65,11 +65,6 @@ def test_packaged_model_matches_documented_treadmill_height() -> None:
     assert model.body("carriage").pos[2] == pytest.approx(TREADMILL_CARRIAGE_HEIGHT_M)
 
 
-def test_default_belt_drag_is_the_models() -> None:
-    model = mujoco.MjModel.from_xml_path(str(packaged_model_path()))
-    assert model.joint("belt").frictionloss[0] == pytest.approx(DEFAULT_BELT_DRAG_N)
-
-
 def test_viewer_keyframe_rest_is_the_baseline_equilibrium() -> None:
     """The 'rest' keyframe of leg.xml (for the viewer) holds still: baseline tension, leg straight down."""
     model = mujoco.MjModel.from_xml_path(str(packaged_model_path()))
@@ -99,8 +94,7 @@ def test_moment_arms_follow_fig1d(air_plant: MujocoLeg) -> None:
     ("field", "value"),
     [
         ("carriage_height_m", 0.0),
-        ("belt_drag_n", -1.0),
-        ("belt_drag_n", math.inf),
+        ("calibration", "no-such-calibration.yaml"),
         ("tick_hz", -78.0),
         ("tick_jitter_s", 0.007),
         ("tick_jitter_s", math.nan),
@@ -223,18 +217,19 @@ def test_hand_built_cycle_propels_the_belt_on_the_treadmill(treadmill_plant: Muj
     assert np.sum(per_cycle > 2.0) >= 16 and per_cycle.max() < 64.0
 
 
-def belt_travel_mm(config: MujocoLegConfig, cycles: int = 5) -> float:
-    plant = MujocoLeg(config)
+def belt_travel_mm(config: MujocoLegConfig, cycles: int = 5, belt_drag_n: float | None = None) -> float:
+    calibration = LegCalibration({"belt_drag_n": belt_drag_n}) if belt_drag_n is not None else None
+    plant = MujocoLeg(config, calibration=calibration)
     start = plant.reset()
     return float(run_sequence(plant, np.tile(propulsive_cycle(), (cycles, 1))).belt_mm[-1] - start.belt_mm)
 
 
 def test_belt_drag_resists_the_same_stepping() -> None:
     default = belt_travel_mm(MujocoLegConfig())
-    heavier = belt_travel_mm(MujocoLegConfig(belt_drag_n=4.0))
+    heavier = belt_travel_mm(MujocoLegConfig(), belt_drag_n=4.0)
     assert 0.0 < heavier < 0.8 * default
     # A drag the foot cannot overcome: only the soft friction constraint's creep is left (docs/SIMULATOR.md).
-    assert abs(belt_travel_mm(MujocoLegConfig(belt_drag_n=100.0))) < 0.1 * default
+    assert abs(belt_travel_mm(MujocoLegConfig(), belt_drag_n=100.0)) < 0.1 * default
 
 
 def test_hand_built_cycle_moves_nothing_in_the_air(air_plant: MujocoLeg) -> None:

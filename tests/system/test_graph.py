@@ -25,7 +25,6 @@ from g2p.inverse_map import InverseMap
 from g2p.learner import Learner, LearnerConfig
 from g2p.limit_cycle import LimitCycleConfig, attempt_kinematics
 from g2p.plant import TickSample
-from g2p.sim.config import DEFAULT_BELT_DRAG_N
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_interfaces.msg import MotorActivation
 from g2p_ros import contract
@@ -252,7 +251,7 @@ def test_make_run_equivalent_records_a_run_whose_map_can_be_rebuilt_from_the_bag
     assert (bag / "report" / "fig4a_reward.png").is_file()
     # Every node's resolved configuration is in the bag.
     assert run.configs["/leg/sim/config"]["time_mode"] == "fast"
-    assert run.configs["/leg/sim/config"]["leg"]["belt_drag_n"] == DEFAULT_BELT_DRAG_N
+    assert run.configs["/leg/sim/config"]["leg"]["calibration"] == ""
     assert run.configs["/leg/recorder/config"]["run_id"] == "test-run"
     # Rebuild the learner's map from the bag alone, with the configuration recorded in it.
     config = run.configs["/leg/learner/config"]["learner"]

@@ -10,14 +10,13 @@ from pathlib import Path
 from g2p.config import ConfigError, require, require_positive
 from g2p.plant import NOMINAL_TICK_HZ
 from g2p.safety import BASELINE_ACTIVATION
+from g2p.sim.calibration import CalibrationError, LegCalibration
 
 # Height of the hip axis above the belt surface (m). The straight leg reaches 0.437 m below the hip
 # (thigh 0.2 + shank 0.2 + ankle-to-sole 0.037), so at 0.42 m the extended leg presses 17 mm into the
 # compliant belt span near vertical, while about 35 deg of knee flexion lifts the foot clear. Must equal the
 # carriage height written in leg.xml (a test checks), so the viewer shows the default too.
 TREADMILL_CARRIAGE_HEIGHT_M = 0.42
-# Coulomb drag of the belt (N): the frictionloss of the belt joint in leg.xml (a test checks they agree).
-DEFAULT_BELT_DRAG_N = 1.5
 # Carriage raised so that no posture reaches the belt (the lowest reachable point is 0.437 m below the hip).
 AIR_CARRIAGE_HEIGHT_M = 0.60
 
@@ -36,11 +35,9 @@ class MujocoLegConfig:
             keep the element names of the packaged one (joints, tendons, actuators, custom numerics).
         carriage_height_m: height of the hip axis above the belt surface (m). TREADMILL_CARRIAGE_HEIGHT_M
             puts the foot on the belt, AIR_CARRIAGE_HEIGHT_M keeps it in the air.
-        belt_drag_n: Coulomb drag of the belt (N): the force it takes to start it moving (the belt joint's
-            frictionloss; replaces the model's value). DEFAULT_BELT_DRAG_N, the value in leg.xml, lets 40 %
-            of random cycles pass the paper's 64 mm threshold; about 3.5 N makes exploration as long as on
-            the authors' rig (median ~14 attempts) at lower rewards (docs/ALGORITHM.md, "Treadmill
-            exploration is easier than on the hardware").
+        calibration: the leg's physical parameters that differ from the model's (g2p.sim.calibration): a
+            calibration YAML file (as `g2p-calibrate` writes it), or the name of a packaged one ("paper":
+            the paper-like rig, docs/SIMULATOR.md); "" runs the model as it is.
         tick_hz: nominal rig tick rate (Hz); the rig ran at about 78 Hz.
         tick_jitter_s: half-width of the uniform jitter added to each tick period (s); each period is
             1/tick_hz + U(-tick_jitter_s, +tick_jitter_s). 0.0008 s reproduces the measured 78 +/- 5 Hz.
@@ -55,7 +52,7 @@ class MujocoLegConfig:
 
     model_path: str = ""
     carriage_height_m: float = TREADMILL_CARRIAGE_HEIGHT_M
-    belt_drag_n: float = DEFAULT_BELT_DRAG_N
+    calibration: str = ""
     tick_hz: float = NOMINAL_TICK_HZ
     tick_jitter_s: float = 0.0008
     substeps: int = 8
@@ -68,11 +65,11 @@ class MujocoLegConfig:
         if self.model_path:
             require(Path(self.model_path).is_file(), "model_path", f"no such file: {self.model_path!r}")
         require_positive(self.carriage_height_m, "carriage_height_m")
-        require(
-            math.isfinite(self.belt_drag_n) and self.belt_drag_n >= 0.0,
-            "belt_drag_n",
-            f"must be a finite number >= 0, got {self.belt_drag_n!r}",
-        )
+        if self.calibration:
+            try:
+                LegCalibration.load(self.calibration)
+            except CalibrationError as err:
+                raise ConfigError(f"calibration: {err}") from err
         require_positive(self.tick_hz, "tick_hz")
         require(
             math.isfinite(self.tick_jitter_s) and 0.0 <= self.tick_jitter_s < 0.5 / self.tick_hz,
@@ -111,6 +108,11 @@ class MujocoLegConfig:
         return Path(self.model_path) if self.model_path else packaged_model_path()
 
     @property
+    def leg_calibration(self) -> LegCalibration:
+        """The calibration this configuration names (an empty one when none)."""
+        return LegCalibration.load(self.calibration) if self.calibration else LegCalibration(parameters={})
+
+    @property
     def nominal_period_s(self) -> float:
         """Nominal tick period 1/tick_hz (s)."""
         return 1.0 / self.tick_hz
@@ -118,7 +120,6 @@ class MujocoLegConfig:
 
 __all__ = [
     "AIR_CARRIAGE_HEIGHT_M",
-    "DEFAULT_BELT_DRAG_N",
     "TREADMILL_CARRIAGE_HEIGHT_M",
     "ConfigError",
     "MujocoLegConfig",

@@ -16,6 +16,7 @@ import numpy as np
 
 from g2p.plant import N_MOTORS, FloatArray, TickSample
 from g2p.safety import check_activation, clamp_activation
+from g2p.sim.calibration import MAX_ENCODER_DELAY_S, LegCalibration
 from g2p.sim.config import MujocoLegConfig
 from g2p.sim.model import IntArray, LegModel, load_leg_model
 from g2p.sim.motor import electrical_power_w
@@ -43,21 +44,31 @@ class MujocoLeg:
     returns to it exactly. The belt odometer, the energy meters and the clock run on across resets, as on
     the rig.
 
+    A calibration (g2p.sim.calibration) sets the model's physical parameters before it is compiled, and
+    the sensors' own: each encoder reads the joint angle `encoder_delay_s` before the end of the tick plus
+    its zero offset, then quantized.
+
     Args:
         config: the rig settings (defaults: treadmill mode, 78 Hz with 0.8 ms jitter).
         rng: generator of the tick jitter; None seeds one from `config.seed`.
+        calibration: the leg's calibration; None loads the one `config.calibration` names.
 
     Raises:
         ConfigError: invalid configuration (raised by MujocoLegConfig).
         ModelError: the MJCF model lacks an element the plant needs.
     """
 
-    def __init__(self, config: MujocoLegConfig | None = None, rng: np.random.Generator | None = None) -> None:
+    def __init__(
+        self,
+        config: MujocoLegConfig | None = None,
+        rng: np.random.Generator | None = None,
+        calibration: LegCalibration | None = None,
+    ) -> None:
         self.config = config if config is not None else MujocoLegConfig()
         cfg = self.config
-        self._leg: LegModel = load_leg_model(cfg.resolved_model_path, cfg.carriage_height_m)
+        self.calibration = calibration if calibration is not None else cfg.leg_calibration
+        self._leg: LegModel = load_leg_model(cfg.resolved_model_path, cfg.carriage_height_m, self.calibration)
         self._model = self._leg.model
-        self._model.dof_frictionloss[self._leg.belt_dof] = cfg.belt_drag_n
         self._data = mujoco.MjData(self._model)
         # Views on the MjData buffers (they stay valid: MjData is never reallocated), to keep ticks cheap.
         self._qpos, self._qvel = self._data.qpos, self._data.qvel
@@ -75,13 +86,21 @@ class MujocoLeg:
         # Per-substep scratch: activation (normalised current) and spool angles at the substep boundaries.
         self._act_hist = np.empty((self._n_sub, N_MOTORS))
         self._spool_hist = np.empty((self._n_sub + 1, N_MOTORS))
+        # The encoders: zero offsets, and the delay read from a history of the angles at sub-step ends
+        # (times (H,) in s, angles (H, 2) in rad, oldest first) long enough for the largest delay.
+        self._encoder_offset = self.calibration.encoder_offset_rad
+        self._encoder_delay_s = self.calibration.encoder_delay_s
+        span_ticks = math.ceil(MAX_ENCODER_DELAY_S * cfg.tick_hz / (1.0 - cfg.tick_jitter_s * cfg.tick_hz)) + 1
+        n_hist = span_ticks * self._n_sub + 1 if self._encoder_delay_s > 0 else 0
+        self._hist_t = np.zeros(n_hist)
+        self._hist_q = np.zeros((n_hist, 2))
 
         self._time_s = 0.0
         self._energy_j = np.zeros(N_MOTORS)
         self._rest_state = self._settle()
         self._belt_rest_m = float(self._data.qpos[self._leg.belt_qpos])
         self._belt_base_m = -self._belt_rest_m  # the odometer reads 0 at the first rest posture
-        self._prev_angle = self._read_angles()
+        self._hold_encoders()
         self._diverged = False
         self._closed = False
 
@@ -137,11 +156,12 @@ class MujocoLeg:
             mujoco.mj_forward(self._model, self._data)
         return self._still_sample()
 
-    def step(self, activation: FloatArray) -> TickSample:
+    def step(self, activation: FloatArray, period_s: float | None = None) -> TickSample:
         """Apply activations for one tick and return the tick's sample.
 
         Args:
             activation: shape (3,), finite; values are clamped to [baseline, 1] before they are applied.
+            period_s: the tick's duration (s), to replay a recorded tick; None draws it from the tick clock.
 
         Raises:
             ValueError: the activation is not 3 finite numbers (nothing changes: no time passes).
@@ -154,17 +174,24 @@ class MujocoLeg:
         applied = clamp_activation(commanded, self.config.baseline_activation)
         model, data, n = self._model, self._data, self._n_sub
         qpos, act, spools = self._qpos, self._act, self._spools
-        period = self._clock.next_period()
+        period = self._clock.next_period() if period_s is None else period_s
         dt = period / n
         model.opt.timestep = dt
         self._ctrl[:] = applied
         act_hist, spool_hist = self._act_hist, self._spool_hist
+        delayed = self._encoder_delay_s > 0
+        if delayed:
+            hist_t, hist_q = self._hist_t, self._hist_q
+            hist_t[:-n], hist_q[:-n] = hist_t[n:], hist_q[n:]
         for k in range(n):
             # Actuator force in a step uses the activation at its start; qpos moves by dt * new qvel, so
             # torque * spool displacement is the exact work of the step.
             act_hist[k] = act
             spool_hist[k] = qpos[spools]
             mujoco.mj_step(model, data)
+            if delayed:
+                hist_t[k - n] = self._time_s + (k + 1) * dt
+                hist_q[k - n] = qpos[self._leg.joint_qpos]
         spool_hist[n] = qpos[spools]
         if not math.isfinite(qpos.sum() + self._qvel.sum()):
             self._diverged = True
@@ -267,7 +294,7 @@ class MujocoLeg:
 
     def _still_sample(self) -> TickSample:
         """A sample of the present state with no tick behind it: baseline, encoder velocity 0."""
-        self._prev_angle = self._read_angles()
+        self._hold_encoders()
         current = self._data.act * self._i_max
         return self._sample(
             act=self._baseline.copy(),
@@ -277,8 +304,22 @@ class MujocoLeg:
             power=electrical_power_w(current, np.zeros(N_MOTORS), self._leg.motor),
         )
 
+    def _hold_encoders(self) -> None:
+        """The encoders' history becomes the present posture, held still until now."""
+        if self._hist_t.size:
+            substep_s = self.config.nominal_period_s / self._n_sub
+            self._hist_t[:] = self._time_s - substep_s * np.arange(self._hist_t.size)[::-1]
+            self._hist_q[:] = self._qpos[self._leg.joint_qpos]
+        self._prev_angle = self._read_angles()
+
     def _read_angles(self) -> FloatArray:
-        return quantize_angle(self._qpos[self._leg.joint_qpos], self.config.encoder_bits)
+        if self._encoder_delay_s > 0:
+            t = self._time_s - self._encoder_delay_s
+            hist_t, hist_q = self._hist_t, self._hist_q
+            true = np.array([np.interp(t, hist_t, hist_q[:, 0]), np.interp(t, hist_t, hist_q[:, 1])])
+        else:
+            true = self._qpos[self._leg.joint_qpos]
+        return quantize_angle(true + self._encoder_offset, self.config.encoder_bits)
 
     def _wrap_belt(self) -> None:
         offset = float(self._qpos[self._leg.belt_qpos]) - self._belt_rest_m

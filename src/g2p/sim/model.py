@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from g2p.plant import JOINT_NAMES, MOTOR_NAMES
+from g2p.sim.calibration import LegCalibration
 from g2p.sim.motor import MotorConstants
 
 IntArray = NDArray[np.intp]
@@ -135,8 +136,12 @@ def _check_tendons(model: mujoco.MjModel, motor: MotorConstants, spool_joints: l
             raise ModelError(f"tendon {name!r} must have stiffness > 0, damping 0 and no length range")
 
 
-def load_leg_model(path: Path, carriage_height_m: float) -> LegModel:
+def load_leg_model(
+    path: Path, carriage_height_m: float, calibration: LegCalibration | None = None
+) -> LegModel:
     """Compile the MJCF at `path` with the carriage (hip axis) at `carriage_height_m` above the belt.
+
+    `calibration`'s model parameters are written into the compiled model.
 
     Raises:
         ModelError: a required element is missing or the motor parameters disagree.
@@ -148,6 +153,8 @@ def load_leg_model(path: Path, carriage_height_m: float) -> LegModel:
         raise ModelError(f"model has no body named {CARRIAGE_BODY!r}")
     carriage.pos = [carriage.pos[0], carriage.pos[1], carriage_height_m]
     model = spec.compile()
+    if calibration is not None:
+        calibration.apply(model)
     try:
         motor = MotorConstants(**{field: _numeric(model, name) for field, name in _NUMERICS.items()})
     except ValueError as err:
