@@ -65,6 +65,8 @@ class SimNode(Node):
             {
                 **config_as_dict(self.config),
                 "leg": config_as_dict(leg_config),
+                # The values themselves, so the bag says which calibration ran wherever its file is.
+                "calibration": leg.calibration.as_dict(),
                 "rig": config_as_dict(server_config),
             },
         )
@@ -95,7 +97,7 @@ def main(args: list[str] | None = None) -> None:
         executor = MultiThreadedExecutor(num_threads=3)
         executor.add_node(node)
         spin_until_stopped(executor, stop)
-    except ConfigError as err:
+    except ConfigError as err:  # a bad leg.calibration file included
         print(f"g2p_sim: invalid parameter {err}", file=sys.stderr)
         sys.exit(2)
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -134,7 +134,9 @@ def _max_current() -> tuple[Callable[[mujoco.MjModel], float], Callable[[mujoco.
 
     def write(m: mujoco.MjModel, value: float) -> None:
         m.numeric_data[numeric(m, "motor_max_current")] = value
-        m.actuator_gainprm[_motors(mujoco.mjtObj.mjOBJ_ACTUATOR, 0)(m)] = m.numeric_data[numeric(m, "motor_kt")] * value
+        m.actuator_gainprm[_motors(mujoco.mjtObj.mjOBJ_ACTUATOR, 0)(m)] = (
+            m.numeric_data[numeric(m, "motor_kt")] * value
+        )
 
     return read, write
 
@@ -144,34 +146,138 @@ _TENDONS = mujoco.mjtObj.mjOBJ_TENDON
 
 
 def _parameters() -> tuple[LegParameter, ...]:
-    def p(name: str, doc: str, low: float, high: float, rw: tuple[Callable[..., Any], ...] = ()) -> LegParameter:
+    def p(
+        name: str, doc: str, low: float, high: float, rw: tuple[Callable[..., Any], ...] = ()
+    ) -> LegParameter:
         read, write = rw if rw else (None, None)
         return LegParameter(name, doc, low, high, read, write)
 
     return (
-        p("proximal_damping_nms", "hip viscous damping (N m s/rad)", 0.0, 1.0, _field("dof_damping", _dof("proximal"))),
-        p("distal_damping_nms", "knee viscous damping (N m s/rad)", 0.0, 1.0, _field("dof_damping", _dof("distal"))),
-        p("proximal_friction_nm", "hip Coulomb friction (N m)", 0.0, 1.0, _field("dof_frictionloss", _dof("proximal"))),
-        p("distal_friction_nm", "knee Coulomb friction (N m)", 0.0, 1.0, _field("dof_frictionloss", _dof("distal"))),
-        p("tendon_stiffness_n_per_m", "series stiffness of each tendon (N/m)", 500.0, 40000.0,
-          _field("tendon_stiffness", lambda m: ([_id(m, _TENDONS, n) for n in MOTOR_NAMES],))),
-        p("m0_proximal_arm_m", "M0's signed moment arm on the hip (m; + pulls clockwise)", 0.005, 0.1,
-          _field("wrap_prm", _wrap("M0", "proximal"))),
-        p("m0_distal_arm_m", "M0's signed moment arm on the knee (m)", -0.1, -0.005, _field("wrap_prm", _wrap("M0", "distal"))),
-        p("m1_proximal_arm_m", "M1's signed moment arm on the hip (m)", -0.15, -0.005, _field("wrap_prm", _wrap("M1", "proximal"))),
-        p("m2_proximal_arm_m", "M2's signed moment arm on the hip (m)", 0.005, 0.1, _field("wrap_prm", _wrap("M2", "proximal"))),
-        p("m2_distal_arm_m", "M2's signed moment arm on the knee (m)", 0.003, 0.1, _field("wrap_prm", _wrap("M2", "distal"))),
-        p("motor_lag_s", "first-order lag of the motor current (s)", 0.002, 0.2, _field("actuator_dynprm", _motors(_ACTUATORS, 0))),
-        p("motor_max_current_a", "motor current at activation 1 (A): the motors' gain", 1.0, 30.0, _max_current()),
-        p("belt_drag_n", "Coulomb drag of the belt (N)", 0.0, 200.0, _field("dof_frictionloss", _dof("belt"))),
-        p("belt_damping_ns_per_m", "viscous drag of the belt (N s/m)", 0.0, 500.0, _field("dof_damping", _dof("belt"))),
-        p("belt_span_stiffness_n_per_m", "vertical stiffness of the belt span under the foot (N/m)", 100.0, 20000.0,
-          _field("jnt_stiffness", _jnt("belt_sag"))),
-        p("belt_span_damping_ns_per_m", "vertical damping of the belt span (N s/m)", 0.5, 200.0,
-          _field("dof_damping", _dof("belt_sag"))),
-        p("foot_friction", "sliding friction coefficient of the foot pad on the belt", 0.05, 3.0,
-          _field("pair_friction", lambda m: (0, [0, 1]))),
-        p("proximal_encoder_offset_rad", "hip encoder zero offset: reading minus true angle (rad)", -0.3, 0.3),
+        p(
+            "proximal_damping_nms",
+            "hip viscous damping (N m s/rad)",
+            0.0,
+            1.0,
+            _field("dof_damping", _dof("proximal")),
+        ),
+        p(
+            "distal_damping_nms",
+            "knee viscous damping (N m s/rad)",
+            0.0,
+            1.0,
+            _field("dof_damping", _dof("distal")),
+        ),
+        p(
+            "proximal_friction_nm",
+            "hip Coulomb friction (N m)",
+            0.0,
+            1.0,
+            _field("dof_frictionloss", _dof("proximal")),
+        ),
+        p(
+            "distal_friction_nm",
+            "knee Coulomb friction (N m)",
+            0.0,
+            1.0,
+            _field("dof_frictionloss", _dof("distal")),
+        ),
+        p(
+            "tendon_stiffness_n_per_m",
+            "series stiffness of each tendon (N/m)",
+            500.0,
+            40000.0,
+            _field("tendon_stiffness", lambda m: ([_id(m, _TENDONS, n) for n in MOTOR_NAMES],)),
+        ),
+        p(
+            "m0_proximal_arm_m",
+            "M0's signed moment arm on the hip (m; + pulls clockwise)",
+            0.005,
+            0.1,
+            _field("wrap_prm", _wrap("M0", "proximal")),
+        ),
+        p(
+            "m0_distal_arm_m",
+            "M0's signed moment arm on the knee (m)",
+            -0.1,
+            -0.005,
+            _field("wrap_prm", _wrap("M0", "distal")),
+        ),
+        p(
+            "m1_proximal_arm_m",
+            "M1's signed moment arm on the hip (m)",
+            -0.15,
+            -0.005,
+            _field("wrap_prm", _wrap("M1", "proximal")),
+        ),
+        p(
+            "m2_proximal_arm_m",
+            "M2's signed moment arm on the hip (m)",
+            0.005,
+            0.1,
+            _field("wrap_prm", _wrap("M2", "proximal")),
+        ),
+        p(
+            "m2_distal_arm_m",
+            "M2's signed moment arm on the knee (m)",
+            0.003,
+            0.1,
+            _field("wrap_prm", _wrap("M2", "distal")),
+        ),
+        p(
+            "motor_lag_s",
+            "first-order lag of the motor current (s)",
+            0.002,
+            0.2,
+            _field("actuator_dynprm", _motors(_ACTUATORS, 0)),
+        ),
+        p(
+            "motor_max_current_a",
+            "motor current at activation 1 (A): the motors' gain",
+            1.0,
+            30.0,
+            _max_current(),
+        ),
+        p(
+            "belt_drag_n",
+            "Coulomb drag of the belt (N)",
+            0.0,
+            200.0,
+            _field("dof_frictionloss", _dof("belt")),
+        ),
+        p(
+            "belt_damping_ns_per_m",
+            "viscous drag of the belt (N s/m)",
+            0.0,
+            500.0,
+            _field("dof_damping", _dof("belt")),
+        ),
+        p(
+            "belt_span_stiffness_n_per_m",
+            "vertical stiffness of the belt span under the foot (N/m)",
+            100.0,
+            20000.0,
+            _field("jnt_stiffness", _jnt("belt_sag")),
+        ),
+        p(
+            "belt_span_damping_ns_per_m",
+            "vertical damping of the belt span (N s/m)",
+            0.5,
+            200.0,
+            _field("dof_damping", _dof("belt_sag")),
+        ),
+        p(
+            "foot_friction",
+            "sliding friction coefficient of the foot pad on the belt",
+            0.05,
+            3.0,
+            _field("pair_friction", lambda m: (0, [0, 1])),
+        ),
+        p(
+            "proximal_encoder_offset_rad",
+            "hip encoder zero offset: reading minus true angle (rad)",
+            -0.3,
+            0.3,
+        ),
         p("distal_encoder_offset_rad", "knee encoder zero offset: reading minus true angle (rad)", -0.3, 0.3),
         p("encoder_delay_s", "age of the joint angles a tick reports (s)", 0.0, MAX_ENCODER_DELAY_S),
     )
@@ -229,9 +335,15 @@ class LegCalibration:
         for name, value in self.parameters.items():
             spec = PARAMETERS.get(name)
             if spec is None:
-                raise CalibrationError(f"{where}: unknown parameter {name!r} (known: {', '.join(PARAMETERS)})")
-            if not (isinstance(value, int | float) and math.isfinite(value) and spec.low <= value <= spec.high):
-                raise CalibrationError(f"{where}: {name} must be a number in [{spec.low}, {spec.high}], got {value!r}")
+                raise CalibrationError(
+                    f"{where}: unknown parameter {name!r} (known: {', '.join(PARAMETERS)})"
+                )
+            if not (
+                isinstance(value, int | float) and math.isfinite(value) and spec.low <= value <= spec.high
+            ):
+                raise CalibrationError(
+                    f"{where}: {name} must be a number in [{spec.low}, {spec.high}], got {value!r}"
+                )
 
     def value(self, name: str, default: float = 0.0) -> float:
         """The calibrated value of `name`, or `default` when this calibration does not set it."""
@@ -241,7 +353,8 @@ class LegCalibration:
     def encoder_offset_rad(self) -> FloatArray:
         """Zero offsets of the (proximal, distal) encoders, shape (2,) (rad)."""
         return np.array(
-            [self.value("proximal_encoder_offset_rad"), self.value("distal_encoder_offset_rad")], dtype=np.float64
+            [self.value("proximal_encoder_offset_rad"), self.value("distal_encoder_offset_rad")],
+            dtype=np.float64,
         )
 
     @property
@@ -287,7 +400,9 @@ class LegCalibration:
         if not isinstance(doc, dict) or doc.get("format") != FORMAT:
             raise CalibrationError(f"{where}: not a leg calibration (needs 'format: {FORMAT}')")
         if doc.get("version") != VERSION:
-            raise CalibrationError(f"{where}: version {doc.get('version')!r} is not supported (this reads {VERSION})")
+            raise CalibrationError(
+                f"{where}: version {doc.get('version')!r} is not supported (this reads {VERSION})"
+            )
         if doc.get("model") != MODEL_NAME:
             raise CalibrationError(f"{where}: calibrates model {doc.get('model')!r}, not {MODEL_NAME!r}")
         parameters = doc.get("parameters") or {}

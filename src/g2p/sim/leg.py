@@ -90,7 +90,8 @@ class MujocoLeg:
         # (times (H,) in s, angles (H, 2) in rad, oldest first) long enough for the largest delay.
         self._encoder_offset = self.calibration.encoder_offset_rad
         self._encoder_delay_s = self.calibration.encoder_delay_s
-        span_ticks = math.ceil(MAX_ENCODER_DELAY_S * cfg.tick_hz / (1.0 - cfg.tick_jitter_s * cfg.tick_hz)) + 1
+        shortest_tick_s = cfg.nominal_period_s - cfg.tick_jitter_s
+        span_ticks = math.ceil(MAX_ENCODER_DELAY_S / shortest_tick_s) + 1
         n_hist = span_ticks * self._n_sub + 1 if self._encoder_delay_s > 0 else 0
         self._hist_t = np.zeros(n_hist)
         self._hist_q = np.zeros((n_hist, 2))
@@ -100,6 +101,7 @@ class MujocoLeg:
         self._rest_state = self._settle()
         self._belt_rest_m = float(self._data.qpos[self._leg.belt_qpos])
         self._belt_base_m = -self._belt_rest_m  # the odometer reads 0 at the first rest posture
+        self._prev_angle: FloatArray  # the encoders' last reading (rad), set by _hold_encoders and step
         self._hold_encoders()
         self._diverged = False
         self._closed = False
@@ -212,6 +214,43 @@ class MujocoLeg:
         return self._sample(
             act=applied, angle=angle, velocity=velocity, current=current.sum(axis=0) / n, power=power_sum / n
         )
+
+    def set_joint_state(self, position_rad: FloatArray, velocity_rad_s: FloatArray | None = None) -> None:
+        """Move the joints to a given true state at once, each tendon keeping its stretch (the spools follow).
+
+        For identification by multiple shooting (g2p.identification): a replay is put back on the recorded
+        joint state at the start of each window. The encoders' history becomes the new posture.
+
+        Args:
+            position_rad: true joint angles, shape (2,) (rad).
+            velocity_rad_s: true joint velocities, shape (2,) (rad/s); None keeps the present ones.
+        """
+        self._require_open()
+        leg, qpos, qvel = self._leg, self._qpos, self._qvel
+        dq = np.asarray(position_rad, dtype=np.float64) - qpos[leg.joint_qpos]
+        dv = np.zeros(2)
+        if velocity_rad_s is not None:
+            dv = np.asarray(velocity_rad_s, dtype=np.float64) - qvel[leg.joint_dof]
+        arms = self._tendon_joint_arms  # (3, 2): tendon length per joint angle (m/rad)
+        radius = leg.motor.spool_radius_m
+        qpos[leg.joint_qpos] += dq
+        qvel[leg.joint_dof] += dv
+        qpos[leg.spool_qpos] -= arms @ dq / radius
+        qvel[leg.spool_dof] -= arms @ dv / radius
+        mujoco.mj_forward(self._model, self._data)
+        self._hold_encoders()
+
+    @property
+    def _tendon_joint_arms(self) -> FloatArray:
+        model, leg = self._model, self._leg
+        arms = np.zeros((3, 2))
+        for t in range(3):
+            for w in range(int(model.tendon_adr[t]), int(model.tendon_adr[t] + model.tendon_num[t])):
+                jid = int(model.wrap_objid[w])
+                for j, qadr in enumerate(leg.joint_qpos):
+                    if int(model.jnt_qposadr[jid]) == int(qadr):
+                        arms[t, j] = float(model.wrap_prm[w])
+        return arms
 
     def close(self) -> None:
         """Drop the motors to baseline and refuse further steps."""
