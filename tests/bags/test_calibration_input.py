@@ -58,3 +58,14 @@ def test_the_command_exits_2_and_writes_nothing(
     assert not out.exists()
     assert calibrate_main([str(tmp_path / "missing"), "--out", str(out)]) == 2
     assert "missing: cannot be read" in capsys.readouterr().err
+
+
+def test_a_fit_that_does_not_converge_exits_1_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    sample = Path(__file__).resolve().parents[2] / "bags" / "samples" / "treadmill-60s-babbling"
+    out = tmp_path / "calib.yaml"
+    args = [str(sample), "--out", str(out), "--params", "motor_lag_s,m1_proximal_arm_m", "--workers", "1"]
+    assert calibrate_main([*args, "--max-evaluations", "1"]) == 1
+    assert "did not converge after 1 evaluations" in capsys.readouterr().err
+    assert not out.exists() and not (tmp_path / "calib.yaml.report").exists()
