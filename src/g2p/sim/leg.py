@@ -44,9 +44,9 @@ class MujocoLeg:
     returns to it exactly. The belt odometer, the energy meters and the clock run on across resets, as on
     the rig.
 
-    A calibration (g2p.sim.calibration) sets the model's physical parameters before it is compiled, and
-    the sensors' own: each encoder reads the joint angle `encoder_delay_s` before the end of the tick plus
-    its zero offset, then quantized.
+    A calibration (g2p.sim.calibration) sets the model's physical parameters, and the sensors' own: each
+    encoder reads the joint angle `encoder_delay_s` before the end of the tick plus its zero offset, then
+    quantized.
 
     Args:
         config: the rig settings (defaults: treadmill mode, 78 Hz with 0.8 ms jitter).
@@ -95,6 +95,7 @@ class MujocoLeg:
         n_hist = span_ticks * self._n_sub + 1 if self._encoder_delay_s > 0 else 0
         self._hist_t = np.zeros(n_hist)
         self._hist_q = np.zeros((n_hist, 2))
+        self._joint_arms = self._tendon_joint_arms()
 
         self._time_s = 0.0
         self._energy_j = np.zeros(N_MOTORS)
@@ -231,7 +232,7 @@ class MujocoLeg:
         dv = np.zeros(2)
         if velocity_rad_s is not None:
             dv = np.asarray(velocity_rad_s, dtype=np.float64) - qvel[leg.joint_dof]
-        arms = self._tendon_joint_arms  # (3, 2): tendon length per joint angle (m/rad)
+        arms = self._joint_arms  # (3, 2): tendon length per joint angle (m/rad)
         radius = leg.motor.spool_radius_m
         qpos[leg.joint_qpos] += dq
         qvel[leg.joint_dof] += dv
@@ -240,8 +241,8 @@ class MujocoLeg:
         mujoco.mj_forward(self._model, self._data)
         self._hold_encoders()
 
-    @property
     def _tendon_joint_arms(self) -> FloatArray:
+        """The fixed tendons' coefficients on the two joints, shape (3, 2) (m/rad)."""
         model, leg = self._model, self._leg
         arms = np.zeros((3, 2))
         for t in range(3):
