@@ -182,7 +182,13 @@ def _outside_environment() -> dict[str, str]:
     """This process's environment without the ROS environment it runs in (scripts/with-env sets up the
     other distribution's from scratch: its libraries must not be shadowed by this one's)."""
     venv = os.environ.get("VIRTUAL_ENV", "")
-    keep = {k: v for k, v in os.environ.items() if k in ("HOME", "LANG", "LC_ALL", "TERM", "TMPDIR")}
+    # OPENBLAS_CORETYPE and OPENBLAS_L2_SIZE, set on some processors, choose the BLAS kernels, hence the
+    # last bits of every map: runs compared with a one-host run need the same ones.
+    keep = {
+        k: v
+        for k, v in os.environ.items()
+        if k in ("HOME", "LANG", "LC_ALL", "TERM", "TMPDIR") or k.startswith("OPENBLAS_")
+    }
     keep["ROS_DOMAIN_ID"] = os.environ.get("ROS_DOMAIN_ID", "0")  # the namespaces keep it to themselves
     keep["PATH"] = os.pathsep.join(
         p for p in os.environ.get("PATH", "").split(os.pathsep) if p and not (venv and p.startswith(venv))
