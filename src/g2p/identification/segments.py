@@ -20,6 +20,8 @@ from g2p.description import LegDescription
 from g2p.plant import NOMINAL_TICK_HZ, FloatArray, Recording, concatenate
 from g2p.rig import DEFAULT_NAMESPACE
 from g2p.sim.config import TREADMILL_CARRIAGE_HEIGHT_M, MujocoLegConfig
+from g2p.sim.description import leg_description
+from g2p.sim.leg import MujocoLeg
 
 # A tick whose recorded duration is outside this share of the nominal period (a gap in the recording, or a
 # stamp out of order) is replayed with the nominal period: the physics is sub-stepped within a tick.
@@ -41,7 +43,6 @@ class Segment:
         activation: the applied activations, shape (N, 3).
         period_s: each tick's duration, shape (N,) (s).
         position_rad: the encoder angles at the end of each tick, shape (N, 2) (rad).
-        velocity_rad_s: the encoder velocities at the end of each tick, shape (N, 2) (rad/s).
         current_a: mean motor currents over each tick, shape (N, 3) (A).
         belt_velocity_mm_s: mean belt velocity over each tick, shape (N,) (mm/s, + backward).
     """
@@ -50,7 +51,6 @@ class Segment:
     activation: FloatArray
     period_s: FloatArray
     position_rad: FloatArray
-    velocity_rad_s: FloatArray
     current_a: FloatArray
     belt_velocity_mm_s: FloatArray
 
@@ -69,7 +69,6 @@ class Segment:
             self.activation[:n],
             self.period_s[:n],
             self.position_rad[:n],
-            self.velocity_rad_s[:n],
             self.current_a[:n],
             self.belt_velocity_mm_s[:n],
         )
@@ -104,7 +103,6 @@ def segment_of(
         activation=recording.activation.copy(),
         period_s=period,
         position_rad=recording.position_rad.copy(),
-        velocity_rad_s=recording.velocity_rad_s.copy(),
         current_a=recording.current_a.copy(),
         belt_velocity_mm_s=belt,
     )
@@ -195,9 +193,6 @@ def load_recorded_run(
         CalibrationInputError: the bag cannot be read, has no babbling or too little of it, lacks motor
             currents, or was recorded on another leg layout.
     """
-    from g2p.sim.description import leg_description  # mujoco only when a bag is calibrated
-    from g2p.sim.leg import MujocoLeg
-
     source = str(bag)
     try:
         run = load_run(bag, rig_namespace)
