@@ -133,9 +133,9 @@ class FitConfig:
             "prior_scale",
             "diff_step",
             "cost_tolerance",
+            "undetermined_share",
         ):
             require_positive(getattr(self, name), name)
-        require_positive(self.undetermined_share, "undetermined_share")
         require(self.max_evaluations >= 1, "max_evaluations", f"must be >= 1, got {self.max_evaluations}")
         require(self.workers >= 0, "workers", f"must be >= 0, got {self.workers}")
 

@@ -89,12 +89,10 @@ def segment_of(
             matter: a replay that starts off by a fraction of a millisecond parts from the recording.
     """
     nominal = 1.0 / tick_hz
-    first = (
-        recording.t_s[0] - (previous_t_s if previous_t_s is not None else recording.t_s[0] - nominal)
-        if len(recording)
-        else 0.0
-    )
-    period = np.diff(recording.t_s, prepend=recording.t_s[0] - first) if len(recording) else np.empty(0)
+    period = np.empty(0)
+    if len(recording):
+        start = previous_t_s if previous_t_s is not None else recording.t_s[0] - nominal
+        period = np.diff(recording.t_s, prepend=start)
     bad = (period < _PERIOD_RANGE[0] * nominal) | (period > _PERIOD_RANGE[1] * nominal)
     period = np.where(bad, nominal, period)
     belt = np.diff(recording.belt_mm, prepend=recording.belt_mm[0] if len(recording) else 0.0) / period
