@@ -231,7 +231,7 @@ def main(args: list[str] | None = None) -> None:
         code = 2
     finally:
         rclpy.try_shutdown()
-    sys.exit(code if not stop.is_set() else 130)
+    sys.exit(code)  # a stop (Ctrl-C, SIGTERM) is a clean end: the learner then exits 0
 
 
 if __name__ == "__main__":

@@ -40,7 +40,7 @@ from g2p.urdf import UrdfError, leg_urdf, packaged_urdf_path, read_leg_urdf
 from g2p_ros.description import publish_robot_description
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
-from g2p_ros.signals import init_with_stop_event, spin_until_stopped
+from g2p_ros.signals import finish_callbacks, init_with_stop_event, spin_until_stopped
 
 if TYPE_CHECKING:
     from g2p.hardware.fake_rig import FakeRig, FakeRigConfig
@@ -339,9 +339,9 @@ def main(args: list[str] | None = None) -> None:
     """
     stop = init_with_stop_event(args)
     node = None
+    executor = MultiThreadedExecutor(num_threads=4)
     try:
         node = DriverNode()
-        executor = MultiThreadedExecutor(num_threads=4)
         executor.add_node(node)
         if node.config.autostart and node.trigger_configure() == TransitionCallbackReturn.SUCCESS:
             node.trigger_activate()
@@ -354,6 +354,7 @@ def main(args: list[str] | None = None) -> None:
     finally:
         if node is not None:
             node.make_safe()  # first, on its own: the outputs matter more than tidy teardown
+            finish_callbacks(executor)
             try:
                 node.destroy_node()
             except Exception as err:

@@ -110,7 +110,8 @@ def _summary(result: Learn.Result, status_ok: bool, threshold_mm: float) -> str:
 def run_learning(node: LearnerNode, client: ActionClient, goal: Learn.Goal, stop: threading.Event) -> int:
     """Send one learn goal to the node's own action server through `client` and report; the exit code.
 
-    When `stop` is set (Ctrl-C, SIGTERM) the goal is cancelled, which drops the rig to baseline.
+    When `stop` is set (Ctrl-C, SIGTERM) the goal is cancelled, which drops the rig to baseline; a
+    stop is a clean end, exit code 0 (`ros2 launch` reports any other code as a process that died).
     """
     # The learner's own server, the rig and the recorder are discovered and settle together; the rig's
     # side may start later (another host): say what is awaited every few seconds.
@@ -121,7 +122,7 @@ def run_learning(node: LearnerNode, client: ActionClient, goal: Learn.Goal, stop
             break
         print(f"learn: waiting for {', '.join(missing)} (is the rig's side up?)", flush=True)
     if stop.is_set():
-        return 130
+        return 0
     if missing:
         print(
             f"learn: not on the graph after {node.config.rig_timeout_s:g} s: {', '.join(missing)}",
@@ -134,7 +135,7 @@ def run_learning(node: LearnerNode, client: ActionClient, goal: Learn.Goal, stop
 def _run_goal(client: ActionClient, goal: Learn.Goal, stop: threading.Event, threshold_mm: float) -> int:
     send = client.send_goal_async(goal, feedback_callback=_Progress())
     if not wait_for_future(send, math.inf, stop):
-        return 130
+        return 0
     handle = send.result()
     if handle is None or not handle.accepted:
         print("learn: goal rejected (see the log above for the reason)", file=sys.stderr)
@@ -144,7 +145,8 @@ def _run_goal(client: ActionClient, goal: Learn.Goal, stop: threading.Event, thr
         print("\nlearn: stopping: cancelling the run (the rig drops to baseline)", file=sys.stderr)
         wait_for_future(handle.cancel_goal_async(), math.inf)
         wait_for_future(result_future, math.inf)
-        return 130
+        print("learn: stopped; the bag holds every attempt completed so far", file=sys.stderr)
+        return 0
     response = result_future.result()
     ok = response.status == GoalStatus.STATUS_SUCCEEDED
     print(_summary(response.result, ok, threshold_mm), flush=True)

@@ -185,13 +185,37 @@ class RecorderNode(Node):
         self.get_logger().warning(f"not recording {topic}: {why}")
 
     def drain(self, executor: Executor, timeout_s: float) -> None:
-        """Stop discovering and write the messages already received, until none arrives for 0.1 s."""
+        """Stop discovering; record until the recorded topics' other publishers have left, then finish.
+
+        Under `ros2 launch` (or a terminal's Ctrl-C) every node gets the signal at once: the rig then
+        still publishes its last ticks and its final baseline tick, and waits for them to be
+        acknowledged, while this node stops. So this node keeps its subscriptions until no other node
+        publishes on a recorded topic, then writes what is still queued, until nothing arrives for 0.1 s;
+        all within `timeout_s` (a publisher that stays, when only the recorder is stopped, ends it then).
+        """
         self._discovery.cancel()
         deadline = time.monotonic() + timeout_s
+        while self._publishers_left() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.02)
         before = -1
         while before != self.received and time.monotonic() < deadline:
             before = self.received
             executor.spin_once(timeout_sec=0.1)
+        if left := self._publishers_left():
+            self.get_logger().warning(
+                f"closing the bag after {timeout_s:g} s while {', '.join(sorted(left))} still publish: "
+                "what they publish from now on is not recorded"
+            )
+
+    def _publishers_left(self) -> set[str]:
+        """The other nodes still publishing on a recorded topic (fully qualified names)."""
+        me = (self.get_name(), self.get_namespace())
+        return {
+            f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+            for topic in self._recorded
+            for info in self.get_publishers_info_by_topic(topic)
+            if (info.node_name, info.node_namespace) != me
+        }
 
     def close_bag(self) -> None:
         """Finalize the bag (idempotent)."""

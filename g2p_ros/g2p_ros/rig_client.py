@@ -38,6 +38,9 @@ GOAL_TIMEOUT_S = 30.0
 # Once the rig reported the sequence played, how long its result (all ticks) may take to arrive (s): a
 # large message over a lossy link is resent fragment by fragment.
 RESULT_TIMEOUT_S = 30.0
+# How long a cancel waits for the rig's answer (s): the learner's whole stop must fit in the 5 s that
+# `ros2 launch` grants before it escalates.
+CANCEL_TIMEOUT_S = 1.0
 # What each action plays, for messages.
 _NOUN = {contract.RUN_ACTIVATIONS: "sequence", contract.RUN_TRAJECTORY: "trajectory"}
 
@@ -219,8 +222,12 @@ class RigClient:
         deadline = time.monotonic() + limit_s
         while not wait_for_future(result_future, 0.05, cancel):
             if cancel is not None and cancel.is_set():
-                _wait(handle.cancel_goal_async(), 10.0, "cancel")
-                raise RigCancelled(f"{_NOUN[name]} cancelled")
+                # Not waited for without bound: a rig stopped by the same signal (`ros2 launch` signals
+                # every node at once) never answers. Answered or not, the rig ends at baseline.
+                answered = wait_for_future(handle.cancel_goal_async(), CANCEL_TIMEOUT_S)
+                raise RigCancelled(
+                    f"{_NOUN[name]} cancelled" + ("" if answered else " (the rig did not answer the cancel)")
+                )
             quiet_s = time.monotonic() - heard[0]
             playing = heard[1] < ticks
             if (playing and quiet_s > self._silence_s) or quiet_s > RESULT_TIMEOUT_S:

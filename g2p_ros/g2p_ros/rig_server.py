@@ -269,21 +269,34 @@ class RigServer:
         self._thread.start()
 
     def stop(self) -> None:
-        """Stop the loop, abort any sequence or trajectory and leave the plant at baseline."""
+        """Stop the loop, abort any sequence or trajectory and leave the plant at baseline (idempotent).
+
+        The last tick published is one at baseline, played after the loop ended: every subscriber (and so
+        the bag) sees the rig stop safe. Then every subscriber's acknowledgement of every tick is awaited.
+        """
         with self._cv:
-            self._running = False
+            was_running, self._running = self._running, False
             if self._job is not None:
                 self._job.error = "rig stopped"
                 self._finish(self._job)
             self._cv.notify_all()
+        if not was_running:
+            return
         if self._thread is not None:
             self._thread.join(timeout=5.0)
+        baseline = self._gate.stop()
+        if self._thread is not None and not self._thread.is_alive():
+            try:
+                self._outbox.put(_Outgoing(self._plant.step(baseline), True))
+                self._ticks += 1
+            except Exception as err:  # a faulted plant: its close() makes it safe
+                self._log.error(f"no final baseline tick: {type(err).__name__}: {err}")
         if self._publisher is not None:
             self._outbox.put(None)  # after the ticks already queued
             self._publisher.join(timeout=5.0)
-        self._gate.stop()
         self._flush()
-        self._log.info(f"stopped after publishing {self._published} ticks")
+        last = "none" if self._last_clock_ns is None else f"{self._last_clock_ns} ns"
+        self._log.info(f"stopped after publishing {self._published} ticks, the last at baseline (stamp {last})")
 
     def _flush(self) -> None:
         """Wait until every subscriber acknowledged every published tick, up to `flush_timeout_s`."""

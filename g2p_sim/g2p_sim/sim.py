@@ -18,7 +18,7 @@ from g2p.sim.model import ModelError
 from g2p_ros.description import publish_robot_description
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
-from g2p_ros.signals import init_with_stop_event, spin_until_stopped
+from g2p_ros.signals import finish_callbacks, init_with_stop_event, spin_until_stopped
 
 
 class TimeMode(enum.Enum):
@@ -92,9 +92,9 @@ def main(args: list[str] | None = None) -> None:
     """Entry point of `ros2 run g2p_sim sim`."""
     stop = init_with_stop_event(args)  # the context stays valid until the rig has stopped and flushed
     node = None
+    executor = MultiThreadedExecutor(num_threads=3)
     try:
         node = SimNode()
-        executor = MultiThreadedExecutor(num_threads=3)
         executor.add_node(node)
         spin_until_stopped(executor, stop)
     except ConfigError as err:  # a bad leg.calibration file included
@@ -104,6 +104,8 @@ def main(args: list[str] | None = None) -> None:
         pass
     finally:
         if node is not None:
+            node.rig.stop()  # goals end, the final baseline tick goes out and is acknowledged
+            finish_callbacks(executor)
             node.destroy_node()
         rclpy.try_shutdown()
 

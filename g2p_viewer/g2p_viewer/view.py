@@ -98,10 +98,10 @@ def _replay(bag: Path, rate: float, config: ViewerConfig, stop: threading.Event)
     with LegViewer(packaged_leg_description(), config) as viewer:
         print(f"view: {bag} on {viewer.url}; waiting for a Foxglove client", flush=True)
         if not viewer.wait_for_client(stop=stop):
-            return 130
+            return 0  # stopped before a client came: a clean stop
         shown = replay_bag(bag, viewer, rate, stop=stop)
         print(f"view: replayed {shown} ticks", flush=True)
-    return 130 if stop.is_set() else 0
+    return 0
 
 
 def _parse(argv: list[str]) -> argparse.Namespace:

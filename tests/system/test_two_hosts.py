@@ -21,6 +21,7 @@ from g2p.bags.resume import resume_point
 from g2p.safety import BASELINE_ACTIVATION
 from tests.commands import console_script
 from tests.nodes.rosproc import executable
+from tests.system.launched import Stopped, assert_every_tick_recorded, assert_stopped_cleanly
 from tests.twohost.bench import TwoHostBench
 from tests.twohost.graph import SHORT_RUN, HostProcess, TwoHostGraph, ros_params, set_args
 
@@ -131,7 +132,7 @@ def test_a_seeded_run_over_an_impaired_link_equals_the_run_over_loopback(
     g = graph(two_host_bench, tmp_path)
     rig_side, workstation = learn_two_hosts(g, "sim", RUN)
     assert workstation.wait(600) == 0, workstation.log()
-    assert rig_side.stop() in (0, 130), rig_side.log()
+    assert rig_side.stop() == 0, rig_side.log()
 
     there = load_run(g.bag)
     ends = sorted(set(attempt_ends(there)))
@@ -172,10 +173,12 @@ def test_a_partition_during_an_attempt_retries_it_once_the_link_returns(
     two_host_bench.partition()
     # Longer than the rest of the sequence: the rig ends it and holds baseline before the link returns.
     time.sleep(5.0)
-    two_host_bench.restore()
+    # The link carries packets again from somewhere inside restore() on: the learner may see the rig and
+    # retry before the call returns (measured: a retry's first tick 42 ms before the return).
     healed = time.time()
+    two_host_bench.restore()
     assert workstation.wait(300) == 0, workstation.log()
-    assert rig_side.stop() in (0, 130), rig_side.log()
+    assert rig_side.stop() == 0, rig_side.log()
 
     run = load_run(g.bag)
     assert sorted(set(attempt_ends(run))) == [1, 2, 3]  # the planned attempts, each completed once
@@ -229,11 +232,36 @@ def test_a_partition_longer_than_the_limit_ends_the_run_cleanly_with_how_to_resu
     two_host_bench.restore()
     assert code == 1
     assert "learn --resume" in workstation.log()
-    assert rig_side.stop() in (0, 130), rig_side.log()
+    assert rig_side.stop() == 0, rig_side.log()
     run = load_run(g.bag)
     done = sorted(set(attempt_ends(run)))
     assert done and done == list(range(1, len(done) + 1))  # every attempt done so far is in the bag
     assert resume_point(g.bag).checkpoint.attempt == done[-1]
+
+
+def test_sigint_to_both_hosts_at_once_stops_every_node_cleanly(
+    two_host_bench: TwoHostBench, tmp_path: Path
+) -> None:
+    # As `ros2 launch` on each host stops its nodes (tests/system/test_stop.py on one host).
+    g = graph(two_host_bench, tmp_path)
+    sim, recorder = rig_nodes(g, "-p", "time_mode:=realtime")
+    learner = g.node("ws", "g2p_learner", "learn", *learner_args(REALTIME_RUN, sim_time=False))
+    learner.wait_for_attempt(1)
+    time.sleep(1.0)  # attempt 2 plays
+    procs = {"sim": sim, "recorder": recorder, "learner": learner}
+    for proc in procs.values():
+        proc.popen.send_signal(signal.SIGINT)
+    sent = time.monotonic()
+    stopped: dict[str, Stopped] = {}
+    while len(stopped) < len(procs) and time.monotonic() < sent + 30.0:
+        for name, proc in procs.items():
+            if name not in stopped and proc.popen.poll() is not None:
+                stopped[name] = Stopped(proc.popen.returncode, time.monotonic() - sent)
+        time.sleep(0.01)
+    for name, proc in procs.items():
+        assert name in stopped, f"{name} still runs 30 s after SIGINT:\n{proc.log()[-3000:]}"
+        assert_stopped_cleanly(name, stopped[name], proc.log())
+    assert_every_tick_recorded(g.bag, sim.log())
 
 
 def test_a_rig_killed_and_restarted_mid_run_is_waited_for_and_the_run_completes(

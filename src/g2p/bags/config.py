@@ -26,8 +26,9 @@ class RecorderConfig:
             backlog (a few hundred bytes per message).
         chunk_period_s: the pending chunk is compressed and written at least this often (s), so a
             killed recorder loses at most this much of the recording (and at most one chunk).
-        drain_timeout_s: on SIGINT/SIGTERM, keep writing messages already received for up to this long
-            before closing the bag (s).
+        drain_timeout_s: on SIGINT/SIGTERM, keep recording until the other publishers of the recorded
+            topics have left and what they sent is written, for up to this long, before closing the bag
+            (s; within the 5 s that `ros2 launch` grants a process before it escalates to SIGTERM).
     """
 
     bags_dir: str = "bags"
@@ -38,7 +39,7 @@ class RecorderConfig:
     discovery_period_s: float = 0.1
     queue_depth: int = 100000
     chunk_period_s: float = 1.0
-    drain_timeout_s: float = 2.0
+    drain_timeout_s: float = 4.0
 
     def __post_init__(self) -> None:
         require(bool(self.bags_dir), "bags_dir", "must not be empty")
