@@ -39,6 +39,14 @@ _held_locks: list[object] = []
 os.environ["ROS_DOMAIN_ID"] = str(_claim_domain_id())
 
 
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Remove the Fast DDS shared-memory files that killed processes of earlier sessions left (the tests
+    kill nodes on purpose), as `bringup` does before each graph."""
+    from g2p_bringup.dds import clean_shared_memory
+
+    clean_shared_memory()
+
+
 @pytest.fixture(autouse=True)
 def _stop_leftover_processes() -> Iterator[None]:
     """After each test, stop the node processes it left running (only tests that started any)."""

@@ -37,7 +37,12 @@ from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 from rclpy.utilities import remove_ros_args
 
 from g2p.bags.runs import new_run_id
-from g2p_bringup.dds import interface_address, one_host_environment, two_host_environment
+from g2p_bringup.dds import (
+    clean_shared_memory,
+    interface_address,
+    one_host_environment,
+    two_host_environment,
+)
 from g2p_bringup.graph import HOSTS, Graph, GraphError, NodeSpec, load_graph
 from g2p_ros.signals import init_with_stop_event
 
@@ -163,6 +168,7 @@ def run(graph: Graph, log_dir: Path, stop: threading.Event, dds_interface: str =
     """
     procs: list[Process] = []
     code = 1
+    clean_shared_memory()  # what killed processes left in /dev/shm
     with tempfile.TemporaryDirectory(prefix="g2p-bringup-") as params_dir:
         try:
             env = _node_environment(Path(params_dir), dds_interface)

@@ -12,8 +12,10 @@ the installed Fast DDS (2.x and 3.x name some XML elements differently).
 from __future__ import annotations
 
 import fcntl
+import shutil
 import socket
 import struct
+import subprocess
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -27,6 +29,28 @@ PROFILE_VARIABLES = ("FASTDDS_DEFAULT_PROFILES_FILE", "FASTRTPS_DEFAULT_PROFILES
 TWO_HOST_MAX_MESSAGE_BYTES = 1400
 
 _SIOCGIFADDR = 0x8915
+
+
+def clean_shared_memory() -> str:
+    """Remove the Fast DDS shared-memory files in /dev/shm whose owners are dead (`fastdds shm clean`).
+
+    A process that is killed (kill -9, a crash, a power cut of the Pi's supply but not its SD card...)
+    leaves its shared-memory port and segment files, about 540 kB each, which nothing removes: they do not
+    slow a later graph (docs/RESULTS.md, "Stale shared memory"), but they accumulate until /dev/shm is full
+    and Fast DDS can create no more ("Failed to create segment"). Files in use by running processes are
+    left alone, so this is safe beside any running ROS 2 graph.
+
+    Returns:
+        What the tool reported ("" when the `fastdds` tool is not on PATH, or failed).
+    """
+    tool = shutil.which("fastdds")
+    if tool is None:
+        return ""
+    try:
+        done = subprocess.run([tool, "shm", "clean"], capture_output=True, text=True, timeout=30)
+    except (OSError, subprocess.TimeoutExpired):
+        return ""
+    return " ".join(done.stdout.split()) if done.returncode == 0 else ""
 
 
 def profile_variable() -> str:

@@ -24,7 +24,12 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from g2p.bags.runs import new_run_id
-from g2p_bringup.dds import interface_address, one_host_environment, two_host_environment
+from g2p_bringup.dds import (
+    clean_shared_memory,
+    interface_address,
+    one_host_environment,
+    two_host_environment,
+)
 from g2p_bringup.graph import load_graph
 
 
@@ -70,6 +75,7 @@ def generate_launch_description():
     """The graph of config/graph.yaml as launch actions."""
     share = Path(get_package_share_directory("g2p_bringup"))
     default_graph = str(share / "config" / "graph.yaml")
+    clean_shared_memory()  # what killed processes left in /dev/shm
     profile = one_host_environment(dict(os.environ), Path(tempfile.mkdtemp(prefix="g2p-launch-")))
     return LaunchDescription(
         [

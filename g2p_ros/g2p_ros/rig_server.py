@@ -296,7 +296,9 @@ class RigServer:
             self._publisher.join(timeout=5.0)
         self._flush()
         last = "none" if self._last_clock_ns is None else f"{self._last_clock_ns} ns"
-        self._log.info(f"stopped after publishing {self._published} ticks, the last at baseline (stamp {last})")
+        self._log.info(
+            f"stopped after publishing {self._published} ticks, the last at baseline (stamp {last})"
+        )
 
     def _flush(self) -> None:
         """Wait until every subscriber acknowledged every published tick, up to `flush_timeout_s`."""

@@ -33,12 +33,12 @@ CALLBACKS_TIMEOUT_S = 3.0
 
 
 def finish_callbacks(executor: Executor, timeout_s: float = CALLBACKS_TIMEOUT_S) -> None:
-    """Shut `executor` down once the callbacks it runs have returned (an action's execute callback ends
-    when its goal is stopped), so none of them uses an entity being destroyed.
+    """Shut `executor` down once the callbacks it runs have returned, so none uses a destroyed entity.
 
-    Call it after stopping the work those callbacks wait on, before destroying the node: a callback that
-    returns into a destroyed action server fails ("cannot use Destroyable because destruction was
-    requested"), and rclpy prints that as an exception never retrieved.
+    An action's execute callback returns once its goal is stopped: call this after stopping the work the
+    callbacks wait on, before destroying the node. A callback that returns into a destroyed action server
+    fails ("cannot use Destroyable because destruction was requested"), and rclpy prints that as an
+    exception never retrieved.
     """
     executor.shutdown(timeout_sec=timeout_s)
 
