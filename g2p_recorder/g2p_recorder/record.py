@@ -190,8 +190,9 @@ class RecorderNode(Node):
         Under `ros2 launch` (or a terminal's Ctrl-C) every node gets the signal at once: the rig then
         still publishes its last ticks and its final baseline tick, and waits for them to be
         acknowledged, while this node stops. So this node keeps its subscriptions until no other node
-        publishes on a recorded topic, then writes what is still queued, until nothing arrives for 0.1 s;
-        all within `timeout_s` (a publisher that stays, when only the recorder is stopped, ends it then).
+        publishes on a recorded topic of its namespace, then writes what is still queued, until nothing
+        arrives for 0.1 s; all within `timeout_s` (a publisher that stays, when only the recorder is
+        stopped, ends it then).
         """
         self._discovery.cancel()
         deadline = time.monotonic() + timeout_s
@@ -208,11 +209,17 @@ class RecorderNode(Node):
             )
 
     def _publishers_left(self) -> set[str]:
-        """The other nodes still publishing on a recorded topic (fully qualified names)."""
+        """The graph's other nodes still publishing on a recorded topic (fully qualified names).
+
+        The graph's: topics in this node's namespace (/leg/...). Global topics (/rosout,
+        /parameter_events) have publishers outside the graph (the ros2 daemon, viewers), which stay.
+        """
         me = (self.get_name(), self.get_namespace())
+        prefix = self.get_namespace().rstrip("/") + "/"
         return {
             f"{info.node_namespace.rstrip('/')}/{info.node_name}"
             for topic in self._recorded
+            if topic.startswith(prefix)
             for info in self.get_publishers_info_by_topic(topic)
             if (info.node_name, info.node_namespace) != me
         }

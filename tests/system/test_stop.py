@@ -59,7 +59,11 @@ class EventWatch(RosPeer):
 
 def interrupt(graph: LaunchedGraph) -> None:
     """SIGINT to the whole graph: every process exits 0 within launch's 5 s, none prints an exception."""
-    for name, how in graph.interrupt().items():
+    stopped = graph.interrupt()
+    print(
+        "stopped:", ", ".join(f"{name} {how.code} after {how.after_s:.2f} s" for name, how in stopped.items())
+    )
+    for name, how in stopped.items():
         assert_stopped_cleanly(name, how, graph.log(name))
 
 
