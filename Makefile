@@ -12,15 +12,16 @@ run:
 # Lint, then every test on ROS 2 Kilted (core, simulator, hardware on fake buses, bags, nodes, the whole
 # graph in real processes, and on two hosts with the rig on Jazzy), then the interface, node and system
 # tests on ROS 2 Jazzy.
-test: lint
-	G2P_ROS_DISTRO=jazzy scripts/bootstrap  # the two-host tests run the rig side on Jazzy
-	scripts/with-env python -m pytest tests
-	G2P_ROS_DISTRO=jazzy scripts/with-env python -m pytest $(ROS_SUITES)
+test: bootstrap lint
+	scripts/with-env python -m pytest --durations=15 tests
+	G2P_ROS_DISTRO=jazzy scripts/with-env python -m pytest --durations=15 $(ROS_SUITES)
 
 # ruff (check and format) on everything, mypy --strict on the core library.
 lint:
 	scripts/with-env sh -c 'ruff check . && ruff format --check . && mypy'
 
+# Both distributions at once (pip and colcon leave a core idle much of the time); the two-host tests run
+# the rig side on Jazzy.
 bootstrap:
-	scripts/bootstrap
-	G2P_ROS_DISTRO=jazzy scripts/bootstrap
+	scripts/bootstrap & kilted=$$!; G2P_ROS_DISTRO=jazzy scripts/bootstrap; jazzy=$$?; \
+	  wait $$kilted && exit $$jazzy

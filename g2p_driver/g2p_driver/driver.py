@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 import rclpy
 from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from std_msgs.msg import Header
 
@@ -37,10 +37,12 @@ from g2p.config import ConfigError, require, require_positive
 from g2p.hardware import HardwareError, HardwareLeg, HardwareLegConfig, load_wiring, open_devices
 from g2p.rig import DEFAULT_NAMESPACE
 from g2p.urdf import UrdfError, leg_urdf, packaged_urdf_path, read_leg_urdf
+from g2p_ros import contract
 from g2p_ros.description import publish_robot_description
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
-from g2p_ros.signals import finish_callbacks, init_with_stop_event, spin_until_stopped
+from g2p_ros.signals import init_with_stop_event, spin_until_stopped
+from g2p_ros.spinner import MultiThreadedExecutor
 
 if TYPE_CHECKING:
     from g2p.hardware.fake_rig import FakeRig, FakeRigConfig
@@ -141,7 +143,7 @@ class DriverNode(LifecycleNode):
         # The default callback group is mutually exclusive and holds the lifecycle services: a fault
         # reported by the loop thread is acted on here, never during another transition.
         self._fault_signal = self.create_guard_condition(self._on_fault_signal)
-        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", contract.DIAGNOSTICS_QOS)
         self._diag_timer = self.create_timer(self.config.diagnostics_period_s, self._publish_diagnostics)
         self._stall_timer = self.create_timer(0.1, self._check_stall)
 
@@ -354,7 +356,7 @@ def main(args: list[str] | None = None) -> None:
     finally:
         if node is not None:
             node.make_safe()  # first, on its own: the outputs matter more than tidy teardown
-            finish_callbacks(executor)
+            executor.shutdown()  # once its callbacks have returned: none uses a destroyed entity
             try:
                 node.destroy_node()
             except Exception as err:

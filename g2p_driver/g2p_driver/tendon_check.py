@@ -12,7 +12,6 @@ from __future__ import annotations
 import sys
 
 import rclpy
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 
 from g2p.config import ConfigError
@@ -20,7 +19,7 @@ from g2p.hardware.tendon_check import TendonCheckConfig, check_tendons
 from g2p.rig import DEFAULT_NAMESPACE, RigError
 from g2p_ros.params import declare_config
 from g2p_ros.rig_client import RigClient
-from g2p_ros.spinner import BackgroundSpinner
+from g2p_ros.spinner import BackgroundSpinner, MultiThreadedExecutor
 
 
 def main(args: list[str] | None = None) -> None:

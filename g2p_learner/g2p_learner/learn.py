@@ -20,7 +20,6 @@ import time
 import rclpy
 from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.utilities import remove_ros_args
 
@@ -30,7 +29,7 @@ from g2p_interfaces.action import Learn
 from g2p_learner.learner_node import LearnerNode
 from g2p_ros.contract import ServerWatch, action_name, wait_all
 from g2p_ros.signals import init_with_stop_event
-from g2p_ros.spinner import BackgroundSpinner, wait_for_future
+from g2p_ros.spinner import BackgroundSpinner, MultiThreadedExecutor, wait_for_future
 
 # While the rig or the recorder is not on the graph yet, how often to say so (s).
 WAIT_REPORT_S = 5.0
@@ -162,6 +161,11 @@ def main(args: list[str] | None = None) -> None:
     client = None
     code = 0
     spinner = None
+    # Torch takes about a second to import and is needed from the first fit on: imported while the graph
+    # is discovered and settles, rather than before the node exists. Joined before exit: an import still
+    # running when the interpreter finalizes fails it ("dictionary changed size during iteration" in
+    # weakref's exit hook, for a learner stopped within a second or two of its start).
+    warm_up = threading.Thread(target=importlib.import_module, args=("g2p.inverse_map_training",))
     try:
         overrides = [] if options.control is None else [Parameter("learner.control", value=options.control)]
         node = LearnerNode(overrides)
@@ -170,11 +174,7 @@ def main(args: list[str] | None = None) -> None:
         executor = MultiThreadedExecutor(num_threads=4)
         executor.add_node(node)
         spinner = BackgroundSpinner(executor).start()
-        # Torch takes about a second to import and is needed from the first fit on: import it while the
-        # graph is discovered and settles, rather than before the node exists.
-        threading.Thread(
-            target=importlib.import_module, args=("g2p.inverse_map_training",), daemon=True
-        ).start()
+        warm_up.start()
         if client is None:
             stop.wait()
         else:
@@ -195,6 +195,8 @@ def main(args: list[str] | None = None) -> None:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        if warm_up.is_alive():
+            warm_up.join()
     sys.exit(code)
 
 

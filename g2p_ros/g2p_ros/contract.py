@@ -44,6 +44,14 @@ DESCRIPTION_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
+# /diagnostics: reliable, depth 100 (100 s of rig time, a few seconds of fast simulation): a recorder
+# lagging a fast simulation loses none.
+DIAGNOSTICS_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 # /clock as rosbag2 and Gazebo publish it: any time source subscription (best effort) accepts it.
 CLOCK_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,

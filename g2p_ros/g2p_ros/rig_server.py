@@ -223,8 +223,7 @@ class RigServer:
         self._pub_clock = (
             node.create_publisher(Clock, "/clock", contract.CLOCK_QOS) if publish_clock else None
         )
-        # Depth 100 (100 s of rig time): a recorder lagging a fast simulation by a few seconds loses none.
-        self._pub_diag = node.create_publisher(DiagnosticArray, "/diagnostics", 100)
+        self._pub_diag = node.create_publisher(DiagnosticArray, "/diagnostics", contract.DIAGNOSTICS_QOS)
         group = ReentrantCallbackGroup()
         # Commands in arrival order: their own mutually exclusive group.
         self._sub_cmd = node.create_subscription(
@@ -279,6 +278,10 @@ class RigServer:
             if self._job is not None:
                 self._job.error = "rig stopped"
                 self._finish(self._job)
+            if self._reset is not None:  # asked for, never started: its caller must not wait on
+                self._reset.message = "rig stopped"
+                self._reset.done.set()
+                self._reset = None
             self._cv.notify_all()
         if not was_running:
             return

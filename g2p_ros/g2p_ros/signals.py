@@ -27,22 +27,6 @@ def init_with_stop_event(args: list[str] | None) -> threading.Event:
     return stop
 
 
-# How long a stopping executable waits for its running callbacks (s), within the 5 s that `ros2 launch`
-# grants before it escalates.
-CALLBACKS_TIMEOUT_S = 3.0
-
-
-def finish_callbacks(executor: Executor, timeout_s: float = CALLBACKS_TIMEOUT_S) -> None:
-    """Shut `executor` down once the callbacks it runs have returned, so none uses a destroyed entity.
-
-    An action's execute callback returns once its goal is stopped: call this after stopping the work the
-    callbacks wait on, before destroying the node. A callback that returns into a destroyed action server
-    fails ("cannot use Destroyable because destruction was requested"), and rclpy prints that as an
-    exception never retrieved.
-    """
-    executor.shutdown(timeout_sec=timeout_s)
-
-
 def spin_until_stopped(executor: Executor, stop: threading.Event) -> None:
     """Spin `executor` until `stop` is set (SIGINT or SIGTERM) or the default context shuts down.
 

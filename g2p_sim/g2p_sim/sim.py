@@ -7,7 +7,7 @@ import sys
 from dataclasses import dataclass
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from g2p.config import ConfigError
@@ -18,7 +18,8 @@ from g2p.sim.model import ModelError
 from g2p_ros.description import publish_robot_description
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
-from g2p_ros.signals import finish_callbacks, init_with_stop_event, spin_until_stopped
+from g2p_ros.signals import init_with_stop_event, spin_until_stopped
+from g2p_ros.spinner import MultiThreadedExecutor
 
 
 class TimeMode(enum.Enum):
@@ -105,7 +106,7 @@ def main(args: list[str] | None = None) -> None:
     finally:
         if node is not None:
             node.rig.stop()  # goals end, the final baseline tick goes out and is acknowledged
-            finish_callbacks(executor)
+            executor.shutdown()  # once its callbacks have returned: none uses a destroyed entity
             node.destroy_node()
         rclpy.try_shutdown()
 

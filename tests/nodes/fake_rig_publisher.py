@@ -140,7 +140,7 @@ def publish_main(argv: list[str]) -> None:
     )
     types = {
         "/clock": (Clock, contract.CLOCK_QOS),
-        "/diagnostics": (DiagnosticArray, 10),
+        "/diagnostics": (DiagnosticArray, contract.DIAGNOSTICS_QOS),
         "/leg/learner/events": (LearnerEvent, EVENT_QOS),
         "/leg/learner/inverse_map": (InverseMapWeights, LATCHED_QOS),
         "/leg/joint_states": (JointState, sample_qos),
