@@ -198,10 +198,12 @@ class RecorderNode(Node):
         deadline = time.monotonic() + timeout_s
         while self._publishers_left() and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.02)
-        before = -1
-        while before != self.received and time.monotonic() < deadline:
-            before = self.received
-            executor.spin_once(timeout_sec=0.1)
+        # Quiet for 0.1 s of wall time, not one spin: a spin may run a timer instead of a message.
+        count, last = self.received, time.monotonic()
+        while time.monotonic() < min(deadline, last + 0.1):
+            executor.spin_once(timeout_sec=0.02)
+            if self.received != count:
+                count, last = self.received, time.monotonic()
         if left := self._publishers_left():
             self.get_logger().warning(
                 f"closing the bag after {timeout_s:g} s while {', '.join(sorted(left))} still publish: "
