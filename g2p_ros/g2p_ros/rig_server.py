@@ -212,7 +212,7 @@ class RigServer:
         self._burst: tuple[float, float] | None = None  # (wall, plant time) when on-demand ticking resumed
         self._last_log = {"rejected": 0.0, "ignored": 0.0, "stale": 0.0}
         self._stale_commands = 0
-        self._last_clock_ns: int | None = None  # the stamp of the last tick published (publisher thread)
+        self._last_clock_ns: int | None = None  # the rig's clock: the last tick's stamp (publisher thread)
 
         qos = contract.SAMPLE_QOS
         self._pub_joints = node.create_publisher(JointState, contract.JOINT_STATES, qos)
@@ -256,11 +256,16 @@ class RigServer:
     # Life cycle ------------------------------------------------------------------------------------
 
     def start(self) -> None:
-        """Reset the plant to rest and start the tick loop thread."""
+        """Reset the plant to rest and start the tick loop thread.
+
+        The rest sample is not published, only its stamp on /clock: published before any subscriber
+        could match, it would reach each subscriber on some topics and not others.
+        """
         first = self._plant.reset()
         self._stamp_offset_s = 0.0 if self._sim_time else time.time() - first.t_s
         self._wall_start = time.monotonic() - first.t_s
-        self._publish(first)
+        self._last_clock_ns = stamp_ns(self._stamp(first.t_s))
+        self._publish_clock()
         self._running = True
         self._publisher = threading.Thread(target=self._publish_loop, name="rig_publisher", daemon=True)
         self._publisher.start()
