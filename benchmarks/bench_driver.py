@@ -155,9 +155,10 @@ def run_rig_server(seconds: float, sched_fifo: int, seed: int, wiring: str = "")
     from rclpy.executors import MultiThreadedExecutor
     from rclpy.node import Node
 
+    from g2p.tick_loop import Pacing
     from g2p_interfaces.action import RunActivations
     from g2p_ros import contract
-    from g2p_ros.rig_server import Pacing, RigServer
+    from g2p_ros.rig_server import RigServer
 
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     context = Context()

@@ -36,11 +36,12 @@ from std_msgs.msg import Header
 from g2p.config import ConfigError, require, require_positive
 from g2p.hardware import HardwareError, HardwareLeg, HardwareLegConfig, load_wiring, open_devices
 from g2p.rig import DEFAULT_NAMESPACE
+from g2p.tick_loop import Pacing
 from g2p.urdf import UrdfError, leg_urdf, packaged_urdf_path, read_leg_urdf
 from g2p_ros import contract
 from g2p_ros.description import publish_robot_description
 from g2p_ros.params import config_as_dict, declare_config, publish_config
-from g2p_ros.rig_server import Pacing, RigServer, RigServerConfig
+from g2p_ros.rig_server import RigServer, RigServerConfig
 from g2p_ros.signals import init_with_stop_event, spin_until_stopped
 from g2p_ros.spinner import MultiThreadedExecutor
 

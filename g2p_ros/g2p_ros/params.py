@@ -129,8 +129,15 @@ def _from_ros(value: Any, default: Any) -> Any:
 
 
 def _attribute_docs(cls: type) -> dict[str, str]:
-    """Field descriptions from a Google-style `Attributes:` docstring section."""
-    doc = cls.__doc__ or ""
+    """Field descriptions from the Google-style `Attributes:` docstring sections of `cls` and its bases."""
+    docs: dict[str, str] = {}
+    for base in reversed(cls.__mro__):
+        docs.update(_own_attribute_docs(base))
+    return docs
+
+
+def _own_attribute_docs(cls: type) -> dict[str, str]:
+    doc = cls.__dict__.get("__doc__") or ""
     section = doc.split("Attributes:", 1)
     if len(section) < 2:
         return {}

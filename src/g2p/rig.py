@@ -12,6 +12,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any, Protocol, TypeVar
 
 import numpy as np
@@ -20,6 +21,7 @@ from numpy.typing import NDArray
 from g2p.closed_loop import TrackedRecording, Trajectory, TrajectoryTracker
 from g2p.plant import NOMINAL_TICK_HZ, Plant, Recording, TickSample
 from g2p.safety import check_activation_sequence
+from g2p.tick_loop import Job, Pacing, TickLoop, TickLoopConfig
 
 ProgressCallback = Callable[[int, int], None]
 
@@ -82,18 +84,40 @@ class Rig(Protocol):
 class PlantRig:
     """A `Rig` over an in-process plant (no ROS): for fast experiments and tests.
 
+    The plant is driven by the rig's own tick loop (g2p.tick_loop), stepped from the caller's thread and
+    unpaced: the same ticks as the simulator node plays for the same calls.
+
     Args:
         plant: the plant to drive.
         progress_every: ticks between progress callbacks.
+        config: the tick loop's settings (default TickLoopConfig(); unpaced: the loop ticks as fast as
+            it can).
     """
 
-    def __init__(self, plant: Plant, progress_every: int = round(NOMINAL_TICK_HZ)) -> None:
+    def __init__(
+        self,
+        plant: Plant,
+        progress_every: int = round(NOMINAL_TICK_HZ),
+        config: TickLoopConfig | None = None,
+    ) -> None:
         self.plant = plant
         self._progress_every = progress_every
+        unpaced = replace(config or TickLoopConfig(), fast_max_real_time_factor=0.0)
+        self._loop = TickLoop(plant, Pacing.ON_DEMAND, unpaced)
+        self._loop.start(threaded=False)
 
     def reset(self) -> None:
-        """Reset the plant to rest."""
-        self.plant.reset()
+        """Reset the plant to rest.
+
+        Raises:
+            RigError: the plant failed to reset.
+        """
+        req = self._loop.request_reset()
+        assert not isinstance(req, str), req  # one caller, one call at a time: never refused
+        while not req.done.is_set():
+            self._loop.tick()
+        if not req.success:
+            raise RigError(req.message)
 
     def play(
         self,
@@ -102,10 +126,8 @@ class PlantRig:
         cancel: threading.Event | None = None,
     ) -> Recording:
         """Play the sequence on the plant, tick by tick."""
-        seq = check_activation_sequence(activations)
-        return Recording.from_samples(
-            self._ticks("sequence", len(seq), lambda k, _: seq[k], progress, cancel)
-        )
+        job = Job(activations=check_activation_sequence(activations))
+        return Recording.from_samples(self._play("sequence", job, progress, cancel))
 
     def play_trajectory(
         self,
@@ -114,36 +136,44 @@ class PlantRig:
         cancel: threading.Event | None = None,
     ) -> TrackedRecording:
         """Play the trajectory on the plant in closed loop, tick by tick."""
-        tracker = TrajectoryTracker(trajectory, 1.0 / self.plant.tick_hz)
-        samples = self._ticks(
-            "trajectory",
-            len(tracker),
-            lambda _, previous: tracker.next_activation(previous),
-            progress,
-            cancel,
-        )
-        return TrackedRecording(Recording.from_samples(samples), tracker.correction_rad_s)
+        job = Job(tracker=TrajectoryTracker(trajectory, 1.0 / self.plant.tick_hz))
+        samples = self._play("trajectory", job, progress, cancel)
+        assert job.tracker is not None
+        return TrackedRecording(Recording.from_samples(samples), job.tracker.correction_rad_s)
 
-    def _ticks(
+    def _play(
         self,
         what: str,
-        n: int,
-        decide: Callable[[int, TickSample | None], NDArray[np.float64]],
+        job: Job,
         progress: ProgressCallback | None,
         cancel: threading.Event | None,
     ) -> list[TickSample]:
-        """Step the plant n ticks, tick k's activation decided from k and the previous tick's sample."""
-        samples: list[TickSample] = []
-        for k in range(n):
-            if cancel is not None and cancel.is_set():
-                self.plant.step(np.zeros(3))  # one tick at baseline, as the ROS rig does on cancel
-                raise RigCancelled(f"{what} cancelled after {k} of {n} ticks")
-            samples.append(self.plant.step(decide(k, samples[-1] if samples else None)))
-            if progress is not None and (k + 1) % self._progress_every == 0:
-                progress(k + 1, n)
+        """Tick the loop until `job` ended; a cancel plays one tick at baseline, as the ROS rig does.
+
+        Raises:
+            RigCancelled: `cancel` was set before the end.
+            RigError: the job failed (a plant fault, no valid activation in closed loop).
+        """
+        n = job.ticks_total
+        assert self._loop.reserve(), "one caller, one call at a time: never refused"
+        self._loop.play(job)
+        try:
+            while not job.done.is_set():
+                if cancel is not None and cancel.is_set():
+                    self._loop.cancel()
+                self._loop.tick()
+                k = len(job.samples)
+                if progress is not None and not job.cancel and k % self._progress_every == 0 and k < n:
+                    progress(k, n)
+        finally:
+            self._loop.release()
+        if job.cancel:
+            raise RigCancelled(f"{what} cancelled after {len(job.samples)} of {n} ticks")
+        if job.error:
+            raise RigError(f"{what} failed after {len(job.samples)} of {n} ticks: {job.error}")
         if progress is not None:
             progress(n, n)
-        return samples
+        return job.samples
 
 
 class RigBusy(RigError):

@@ -97,7 +97,7 @@ class ActivationGate:
         self.baseline = baseline
         self.counters = GateCounters()
         self._held = np.full(N_MOTORS, baseline)
-        self._ticks_since_command = timeout_ticks  # start at baseline, as if the watchdog had tripped
+        self._ticks_since_command = timeout_ticks + 1  # start at baseline, as after a stop: no trip counted
 
     @property
     def baseline_activation(self) -> FloatArray:
