@@ -68,9 +68,17 @@ def test_the_live_viewer_shows_the_rigs_joint_states_on_its_own_leg(tmp_path: Pa
     events = peer.node.create_publisher(LearnerEvent, "learner/events", EVENT_QOS)
     client = FoxgloveClient(f"ws://127.0.0.1:{port}", 90, {"/view/joints": 200, "/view/attempts": 1})
     wait_until(lambda: events.get_subscription_count() > 0, 30.0, "the viewer to subscribe to the events")
-    wait_until(lambda: len(peer.received["joint_states"]) > 0, 30.0, "the rig's joint states")
+    # The attempt starts at a tick both the viewer (its first tick at the client) and the peer received:
+    # the viewer counts the ticks since from there on (under load it may match the rig seconds late).
+    viewer_first, _ = client.first_message("/view/joints", 60.0)
+
+    def peer_latest() -> int:
+        with peer.lock:
+            return stamp_ns(peer.received["joint_states"][-1]) if peer.received["joint_states"] else 0
+
+    wait_until(lambda: peer_latest() >= viewer_first, 30.0, "the rig's joint states at the peer")
     cycle = [[0.1 * k, -0.05 * k] for k in range(7)]
-    start_stamp = stamp_ns(peer.received["joint_states"][-1])
+    start_stamp = peer_latest()
     events.publish(learner_event("attempt_start", start_stamp, detail={"desired_cycle_rad": cycle}))
     time.sleep(3.0)
     events.publish(learner_event("attempt_end", start_stamp + 3_000_000_000, reward_mm=12.5, energy_j=4.0))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -58,12 +59,50 @@ class FoxgloveClient:
         if until_close:
             args.append("--until-close")
         self.popen = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self._lines: list[str] = []
+        self._stderr: list[str] = []
+        self._cv = threading.Condition()
+        self._readers = [
+            threading.Thread(target=self._read, args=(self.popen.stdout, self._lines), daemon=True),
+            threading.Thread(target=self._read, args=(self.popen.stderr, self._stderr), daemon=True),
+        ]
+        for reader in self._readers:
+            reader.start()
+
+    def _read(self, stream: Any, into: list[str]) -> None:
+        for line in stream:
+            with self._cv:
+                into.append(line)
+                self._cv.notify_all()
+        with self._cv:
+            into.append("")  # the end
+            self._cv.notify_all()
+
+    def first_message(self, topic: str, timeout_s: float) -> tuple[int, dict[str, Any]]:
+        """The first message on `topic` (log time ns, decoded), as soon as it arrived."""
+
+        def found() -> tuple[int, dict[str, Any]] | None:
+            for line in self._lines:
+                if not line:
+                    raise AssertionError(f"the client exited before a message on {topic}: {self._stderr}")
+                record = json.loads(line)
+                if record["kind"] == "message" and record["topic"] == topic:
+                    return int(record["logTimeNs"]), record["data"]
+            return None
+
+        with self._cv:
+            assert self._cv.wait_for(lambda: found() is not None, timeout_s), f"no message on {topic}"
+            first = found()
+        assert first is not None
+        return first
 
     def result(self, timeout_s: float = 600.0) -> Received:
         """Wait for the client to exit and parse what it printed."""
-        out, err = self.popen.communicate(timeout=timeout_s)
-        received = Received(self.popen.returncode, err)
-        for line in out.splitlines():
+        self.popen.wait(timeout=timeout_s)
+        for reader in self._readers:
+            reader.join()
+        received = Received(self.popen.returncode, "".join(self._stderr))
+        for line in filter(None, self._lines):
             record = json.loads(line)
             if record["kind"] == "server":
                 received.server = record
