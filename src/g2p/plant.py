@@ -42,6 +42,15 @@ _WIDTHS = {
 }
 
 
+def on_stamp_grid(t_s: float) -> float:
+    """`t_s` in whole nanoseconds, as a ROS stamp carries it, back in seconds (s).
+
+    Every rig reports its ticks' times so (g2p.tick_loop): in-process and over ROS, a learner gets the
+    same floats.
+    """
+    return round(t_s * 1e9) * 1e-9
+
+
 @dataclass(frozen=True)
 class TickSample:
     """What the rig measured over one tick.

@@ -7,10 +7,12 @@ tick each (on-demand pacing), else the latest command through the `ActivationGat
 [baseline, 1], baseline once commands stop). A cancelled job, a fault and a stop drop to baseline from the
 coming tick on. At most one job (sequence or trajectory) or one reset is in progress at a time.
 
-Every tick, reset sample and idle heartbeat goes to `emit` in order; a job or reset is done only once
-`emit`'s receiver calls the tick's `then`, so a ROS rig reports a sequence done once its last tick is
-published. The loop runs in its own thread (`start()`), or is stepped by its caller (`start(threaded=
-False)` and `tick()`), as `PlantRig` does. ros2_control is the model: the loop knows nothing of topics.
+Every sample's time is put on the stamp grid (whole nanoseconds, g2p.plant.on_stamp_grid): in-process
+and over ROS, a learner gets the same floats. Every tick, reset sample and idle heartbeat goes to `emit`
+in order; a job or reset is done only once `emit`'s receiver calls the tick's `then`, so a ROS rig
+reports a sequence done once its last tick is published. The loop runs in its own thread (`start()`), or
+is stepped by its caller (`start(threaded=False)` and `tick()`), as `PlantRig` does. ros2_control is the
+model: the loop knows nothing of topics.
 """
 
 from __future__ import annotations
@@ -20,14 +22,14 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from g2p.closed_loop import TrajectoryTracker
 from g2p.config import require
-from g2p.plant import Plant, TickSample
+from g2p.plant import Plant, TickSample, on_stamp_grid
 from g2p.safety import BASELINE_ACTIVATION, ActivationGate, check_activation_sequence
 
 FloatArray = NDArray[np.float64]
@@ -241,7 +243,7 @@ class TickLoop:
             self._thread.join(timeout=5.0)
             if self._thread.is_alive():  # the plant blocks: it must not be stepped from here
                 return True
-        sample = self.plant.step(self.gate.stop())
+        sample = self._step(self.gate.stop())
         self.counters.ticks += 1
         self._emit(Tick(sample, self.counters.ticks, True))
         return True
@@ -324,7 +326,7 @@ class TickLoop:
             if reset is not None:
                 self._do_reset(reset)
                 return True
-            sample = self.plant.step(activation)
+            sample = self._step(activation)
             self._pace(sample.t_s)
             self.counters.ticks += 1
             then = self._advance(job, sample) if job is not None else None
@@ -332,6 +334,9 @@ class TickLoop:
         except Exception as err:  # the plant (or the delivery) failed: baseline, fail the job, report
             self._fault(err, job)
         return True
+
+    def _step(self, activation: FloatArray) -> TickSample:
+        return _on_grid(self.plant.step(activation))
 
     def _has_work(self) -> bool:
         return self._job is not None or self._reset is not None or bool(self._lockstep)
@@ -382,7 +387,7 @@ class TickLoop:
 
     def _do_reset(self, req: ResetRequest) -> None:
         try:
-            sample = self.plant.reset()
+            sample = _on_grid(self.plant.reset())
         except Exception as err:
             req.success, req.message = False, f"reset failed: {err}"
             req.done.set()
@@ -413,6 +418,11 @@ class TickLoop:
             return
         if delay > 0:
             time.sleep(delay)
+
+
+def _on_grid(sample: TickSample) -> TickSample:
+    """The sample with its time in whole nanoseconds, as a ROS stamp carries it."""
+    return replace(sample, t_s=on_stamp_grid(sample.t_s))
 
 
 def _deliver(tick: Tick) -> None:
