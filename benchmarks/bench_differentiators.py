@@ -25,12 +25,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from g2p.kinematics import Differentiator, PreprocessConfig, Resampling, differentiate, resample, uniform_grid
+from g2p.plant import NOMINAL_TICK_HZ
 
 FloatArray = NDArray[np.float64]
 # Returns (q, dq, ddq) at the given stamps, each shape (N, 2).
 Signal = Callable[[FloatArray], tuple[FloatArray, FloatArray, FloatArray]]
 
-RATE_HZ = 78.0
+RATE_HZ = NOMINAL_TICK_HZ
 RATE_SD_HZ = 5.0
 LSB_RAD = 2 * np.pi / 2**14
 

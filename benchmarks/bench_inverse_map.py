@@ -36,6 +36,7 @@ from g2p.babbling import babbling_activations
 from g2p.inverse_map import InverseMap, InverseMapConfig, Optimizer
 from g2p.kinematics import Differentiator, PreprocessConfig, Resampling, TrainingPairs, training_pairs
 from g2p.limit_cycle import LimitCycleConfig, attempt_kinematics
+from g2p.plant import NOMINAL_TICK_HZ
 
 FloatArray = NDArray[np.float64]
 
@@ -65,7 +66,7 @@ LEG_XML = """
   </actuator>
 </mujoco>
 """
-RATE_HZ, RATE_SD_HZ = 78.0, 5.0
+RATE_HZ, RATE_SD_HZ = NOMINAL_TICK_HZ, 5.0
 # The benchmark leg pulls at most 30 N m per tendon, less than the rig: the paper's cycles (65 / 47.5 deg
 # spokes, ~1 s) are beyond it and no map tracks them. Half the radius and twice the period keep them feasible.
 BENCH_CYCLES = LimitCycleConfig.in_air(

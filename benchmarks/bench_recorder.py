@@ -40,6 +40,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
 from g2p.bags import BagReader, BagWriter, InterfaceLibrary, TopicSpec, TypeRegistry, ament_share_dirs
+from g2p.plant import NOMINAL_TICK_HZ
 from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -124,7 +125,9 @@ def end_to_end(ticks: int, depth: int, workdir: Path) -> dict[str, float]:
     }
 
 
-def rig_minute(seconds: float = 60.0, rate_hz: float = 78.0, seed: int = 0) -> list[tuple[str, int, bytes]]:
+def rig_minute(
+    seconds: float = 60.0, rate_hz: float = NOMINAL_TICK_HZ, seed: int = 0
+) -> list[tuple[str, int, bytes]]:
     """(topic, timestamp ns, CDR) of `seconds` of rig time with every value changing every tick."""
     rng = np.random.default_rng(seed)
     n = int(seconds * rate_hz)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 import time
 
-import g2p.inverse_map_training  # noqa: F401  (torch: imported by the first fit otherwise, inside the call)
+import g2p.inverse_map.training  # noqa: F401  (torch: imported by the first fit otherwise, inside the call)
 from g2p.experiments import run_treadmill
 from g2p.learner import Learner, LearnerConfig
 from g2p.limit_cycle import LimitCycleConfig

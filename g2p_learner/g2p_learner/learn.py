@@ -165,7 +165,7 @@ def main(args: list[str] | None = None) -> None:
     # is discovered and settles, rather than before the node exists. Joined before exit: an import still
     # running when the interpreter finalizes fails it ("dictionary changed size during iteration" in
     # weakref's exit hook, for a learner stopped within a second or two of its start).
-    warm_up = threading.Thread(target=importlib.import_module, args=("g2p.inverse_map_training",))
+    warm_up = threading.Thread(target=importlib.import_module, args=("g2p.inverse_map.training",))
     try:
         overrides = [] if options.control is None else [Parameter("learner.control", value=options.control)]
         node = LearnerNode(overrides)

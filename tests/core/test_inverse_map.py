@@ -13,7 +13,6 @@ import pytest
 import torch
 
 from g2p import inverse_map as im
-from g2p import inverse_map_training as imt
 from g2p.config import ConfigError
 from g2p.inverse_map import (
     FORMAT_VERSION,
@@ -24,6 +23,7 @@ from g2p.inverse_map import (
     Optimizer,
     StopReason,
 )
+from g2p.inverse_map import training as imt
 
 # Kinematics-like input scales: angles ~1 rad, velocities ~5-10 rad/s, accelerations ~50-100 rad/s^2.
 SCALE = np.array([1.0, 1.5, 5.0, 10.0, 50.0, 100.0])

@@ -34,7 +34,7 @@ from g2p.identification.fit import (
     rmse_rad,
 )
 from g2p.identification.segments import CalibrationInputError, RecordedRun, Segment, load_recorded_run
-from g2p.plant import FloatArray
+from g2p.plant import NOMINAL_TICK_HZ, FloatArray
 from g2p.sim.calibration import PARAMETERS, LegCalibration
 
 _BELT_PARAMETERS = ("belt_drag_n", "belt_damping_ns_per_m")
@@ -166,7 +166,7 @@ def plot_angles(cal: Calibration, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     recorded = cal.recorded[0]
-    t = np.arange(len(recorded)) / 78.0
+    t = np.arange(len(recorded)) / NOMINAL_TICK_HZ
     fig, axes = plt.subplots(2, 1, figsize=(9, 5), sharex=True)
     for j, (ax, joint) in enumerate(zip(axes, ("proximal (hip)", "distal (knee)"), strict=True)):
         ax.plot(t, np.degrees(recorded[:, j]), color="k", lw=1.5, label="recorded")

@@ -15,7 +15,7 @@ import numpy as np
 import torch
 from numpy.typing import NDArray
 
-from g2p.inverse_map import N_INPUTS, N_OUTPUTS, FitCancelled, InverseMapConfig, Optimizer, StopReason
+from g2p.inverse_map.config import N_INPUTS, N_OUTPUTS, FitCancelled, InverseMapConfig, Optimizer, StopReason
 
 FloatArray = NDArray[np.float64]
 
