@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from bench_learning import Setup, _air_learner, treadmill
+from setups import Setup, air_learner, treadmill
 
 from g2p.attempt import AttemptOutcome, run_attempt
 from g2p.closed_loop import ControlMode, FeedbackConfig
@@ -128,7 +128,7 @@ def _sweep_task(seed: int, delay_ticks: int, stage: str) -> dict[str, Any]:
     """One seed and one delay of the sweep: the babbling-only map on the sweep's trajectories."""
     delay = delay_ticks
     t0 = time.perf_counter()
-    learner, rig, cycle = _air_learner(seed, Setup())
+    learner, rig, cycle = air_learner(seed, Setup())
     inverse_map = learner.frozen_map()
     rng = seed_streams(seed).tracking
     features = random_features(rng, cycle, 30)[:SWEEP_TRAJECTORIES]  # the generalization's training draw
@@ -239,7 +239,7 @@ def print_sweep(rows: list[dict[str, Any]], top: int = 8) -> str:
 
 @dataclass(frozen=True)
 class LoopSetup(Setup):
-    """bench_learning's Setup with the learner's control mode: None = open loop, else closed loop."""
+    """setups.Setup with the learner's control mode: None = open loop, else closed loop."""
 
     feedback: FeedbackConfig | None = None
 
@@ -266,7 +266,7 @@ def air_laws() -> dict[str, FeedbackConfig | None]:
 def air(seed: int) -> dict[str, Any]:
     """Babbling-only and refined map on 30 unseen air trajectories, in every control law (see above)."""
     t0 = time.perf_counter()
-    learner, rig, cycle = _air_learner(seed, Setup())
+    learner, rig, cycle = air_learner(seed, Setup())
     babbling_map = learner.frozen_map()
     rng = seed_streams(seed).tracking
     train, test = random_features(rng, cycle, 30), random_features(rng, cycle, 30)  # as bench_learning
@@ -292,7 +292,7 @@ def air(seed: int) -> dict[str, Any]:
 
 
 def treadmill_run(seed: int, control: str) -> dict[str, Any]:
-    """bench_learning's treadmill run, open loop or closed loop with the chosen gains."""
+    """setups.treadmill's run, open loop or closed loop with the chosen gains."""
     setup = LoopSetup(feedback=CHOSEN_GAINS[0] if control == "closed" else None)
     return {"control": control, **treadmill(seed, setup)}
 

@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 import optuna
-from bench_learning import Setup, treadmill
+from setups import Setup, treadmill
 
 from g2p.search import SearchConfig
 from g2p.sim.calibration import PARAMETERS, LegCalibration
