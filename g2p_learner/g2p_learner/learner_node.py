@@ -24,7 +24,6 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Header, String
 
 from g2p.attempt import AttemptOutcome
@@ -57,25 +56,19 @@ from g2p.search import SearchConfig
 from g2p.seeds import seed_streams
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_interfaces.msg import InverseMapWeights, LearnerEvent
-from g2p_ros.contract import RIG_SAMPLE_TOPICS, ServerWatch, action_name, wait_all
+from g2p_ros.contract import (
+    EVENT_QOS,
+    LEARNER_EVENTS,
+    LEARNER_INVERSE_MAP,
+    MAP_QOS,
+    RIG_SAMPLE_TOPICS,
+    ServerWatch,
+    action_name,
+    wait_all,
+)
 from g2p_ros.convert import inverse_map_weights_msg
 from g2p_ros.params import CONFIG_QOS, config_as_dict, declare_config, publish_config
 from g2p_ros.rig_client import RigClient
-
-# Events, maps and the configuration must reach the recorder whole, even one that joins late: transient
-# local, with a history longer than a run's events.
-EVENT_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-MAP_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
 
 
 @dataclass(frozen=True)
@@ -203,8 +196,8 @@ class LearnerNode(Node):
         self._busy_lock = threading.Lock()
         self._cancel = threading.Event()
 
-        self._events = self.create_publisher(LearnerEvent, "~/events", EVENT_QOS)
-        self._maps = self.create_publisher(InverseMapWeights, "~/inverse_map", MAP_QOS)
+        self._events = self.create_publisher(LearnerEvent, f"~/{LEARNER_EVENTS}", EVENT_QOS)
+        self._maps = self.create_publisher(InverseMapWeights, f"~/{LEARNER_INVERSE_MAP}", MAP_QOS)
         self._config_pub = publish_config(self, config_as_dict(self.config))
 
         group = ReentrantCallbackGroup()

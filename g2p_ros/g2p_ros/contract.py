@@ -37,6 +37,24 @@ COMMAND_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
+# The learner's topics, relative to the learner node (`~/events`, `~/inverse_map`): its run's events and
+# every inverse map it fitted.
+LEARNER_EVENTS = "events"
+LEARNER_INVERSE_MAP = "inverse_map"
+# Events and maps must reach the recorder whole, even one that joins late (and a viewer started late sees
+# the run so far): transient local, with a history longer than a run's events.
+EVENT_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+MAP_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 # robot_description as robot_state_publisher publishes it: one message, kept for late subscribers.
 DESCRIPTION_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,

@@ -22,7 +22,7 @@ import numpy as np
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -36,19 +36,13 @@ from g2p.urdf import packaged_leg_description, parse_leg_urdf
 from g2p.viewer.replay import replay_bag
 from g2p.viewer.server import LegViewer, ViewerConfig
 from g2p_interfaces.msg import LearnerEvent, Treadmill
+from g2p_ros import contract
 from g2p_ros.contract import DESCRIPTION_QOS, JOINT_STATES, ROBOT_DESCRIPTION, TREADMILL
 from g2p_ros.params import declare_config
 from g2p_ros.signals import init_with_stop_event, spin_until_stopped
 
 # The rig's samples, best effort: the viewer may drop ticks, the rig never waits for it.
 VIEW_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
-# The learner's events are latched (as the rig's description): a viewer started late sees the run so far.
-EVENT_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
 
 
 class ViewerNode(Node):
@@ -63,7 +57,9 @@ class ViewerNode(Node):
         self.create_subscription(JointState, JOINT_STATES, self._joint_state, VIEW_QOS)
         self.create_subscription(Treadmill, TREADMILL, self._treadmill, VIEW_QOS)
         self.create_subscription(String, ROBOT_DESCRIPTION, self._description, DESCRIPTION_QOS)
-        self.create_subscription(LearnerEvent, f"{learner}/events", self._event, EVENT_QOS)
+        self.create_subscription(
+            LearnerEvent, f"{learner}/{contract.LEARNER_EVENTS}", self._event, contract.EVENT_QOS
+        )
         self.get_logger().info(
             f"Foxglove viewer of {self.get_namespace()} on {self.viewer.url}: open it in Foxglove "
             "(Open connection -> Foxglove WebSocket) with the layout src/g2p/viewer/layout.json"

@@ -10,19 +10,16 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Header
 
 from g2p_interfaces.msg import LearnerEvent
+from g2p_ros import contract
 from tests.nodes.rig_nodes import RigPeer, start_sim
 from tests.nodes.rosproc import NodeProcess, wait_until
 from tests.viewer.foxglove_client import FoxgloveClient
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE = ROOT / "bags" / "samples" / "treadmill-60s-babbling"
-EVENT_QOS = QoSProfile(
-    depth=1000, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
-)
 
 
 def free_port() -> int:
@@ -65,7 +62,7 @@ def test_the_live_viewer_shows_the_rigs_joint_states_on_its_own_leg(tmp_path: Pa
     sim = start_sim(tmp_path, "time_mode:=realtime", "leg.carriage_height_m:=0.6")
     port = free_port()
     viewer = NodeProcess("g2p_viewer", "view", ["--ros-args", "-p", f"port:={port}"], tmp_path)
-    events = peer.node.create_publisher(LearnerEvent, "learner/events", EVENT_QOS)
+    events = peer.node.create_publisher(LearnerEvent, "learner/events", contract.EVENT_QOS)
     client = FoxgloveClient(f"ws://127.0.0.1:{port}", 90, {"/view/joints": 200, "/view/attempts": 1})
     wait_until(lambda: events.get_subscription_count() > 0, 30.0, "the viewer to subscribe to the events")
     # The attempt starts at a tick both the viewer (its first tick at the client) and the peer received:
