@@ -26,6 +26,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Header, String
 
+from g2p import run_events
 from g2p.attempt import AttemptOutcome
 from g2p.bags.runs import new_run_id
 from g2p.checkpoint import CheckpointError, capture, restore
@@ -52,6 +53,7 @@ from g2p.rig import (
     RigError,
     RigUnreachable,
 )
+from g2p.run_events import Event
 from g2p.search import SearchConfig
 from g2p.seeds import seed_streams
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
@@ -262,7 +264,7 @@ class LearnerNode(Node):
 
     def _rig_event(self, event: str, detail: dict[str, Any]) -> None:
         """The rig was lost or came back (RetryingRig): log it and record it."""
-        if event == "rig_lost":
+        if event == Event.RIG_LOST:
             self.get_logger().warning(
                 f"rig lost during {detail['call']}: {detail['error']}; waiting up to "
                 f"{self.config.rig_lost_limit_s:g} s for it to answer again"
@@ -271,7 +273,7 @@ class LearnerNode(Node):
             self.get_logger().info(
                 f"rig back after {detail['downtime_s']:.1f} s; the lost sequence is played again from rest"
             )
-        self._event(event, detail=detail)
+        self._event(Event(event), detail=detail)
 
     def _resume_hint(self) -> str:
         where = self.bag_path or "bags/<run>"
@@ -357,18 +359,20 @@ class LearnerNode(Node):
                 self._adopt_recorder_run()
                 return execute(goal_handle)
             except (RigCancelled, FitCancelled) as err:
-                self._event("run_end", detail={"cancelled": str(err)})
+                self._event(Event.RUN_END, detail={run_events.CANCELLED: str(err)})
                 goal_handle.canceled()
                 return action.Result(message=f"cancelled: {err}")
             except RigUnreachable as err:
                 message = f"{err}; {self._resume_hint()}" if action is Learn else str(err)
                 self.get_logger().error(f"{action.__name__} goal aborted: {message}")
-                self._event("run_end", detail={"error": str(err), "resume": self.bag_path})
+                self._event(
+                    Event.RUN_END, detail={run_events.ERROR: str(err), run_events.RESUME: self.bag_path}
+                )
                 goal_handle.abort()
                 return action.Result(message=message)
             except (RigError, ValueError) as err:
                 self.get_logger().error(f"{action.__name__} goal aborted: {err}")
-                self._event("run_end", detail={"error": str(err)})
+                self._event(Event.RUN_END, detail={run_events.ERROR: str(err)})
                 goal_handle.abort()
                 return action.Result(message=str(err))
             finally:
@@ -462,7 +466,7 @@ class LearnerNode(Node):
             "exploration_attempts": result.exploration_attempts,
             "exploitation_attempts": result.exploitation_attempts,
         }
-        self._event("run_end", detail=summary)
+        self._event(Event.RUN_END, detail=summary)
         goal_handle.succeed()
         return Learn.Result(
             best_features=result.best_features,
@@ -485,10 +489,10 @@ class LearnerNode(Node):
             exploitation_attempts=goal.exploitation_attempts or search.exploitation_attempts,
         )
         self._event(
-            "run_start",
+            Event.RUN_START,
             detail={
                 "goal": {"dataset_bag": goal.dataset_bag, "babbling_duration_s": goal.babbling_duration_s},
-                "search": config_as_dict(search),
+                run_events.SEARCH: config_as_dict(search),
             },
         )
         if goal.dataset_bag:
@@ -541,9 +545,9 @@ class LearnerNode(Node):
         self.learner = run.learner
         self.run_id = point.run_id
         self._event(
-            "run_start",
+            Event.RUN_START,
             detail={
-                "search": point.search,
+                run_events.SEARCH: point.search,
                 "resumed_from": {"bag": str(point.bag), "attempt": point.checkpoint.attempt},
             },
         )
@@ -558,7 +562,9 @@ class LearnerNode(Node):
         """Record the run's state (g2p.checkpoint): `learn --resume` continues from the last one."""
         checkpoint = capture(run)
         self._event(
-            "checkpoint", attempt=checkpoint.attempt, detail={"checkpoint": json.loads(checkpoint.to_json())}
+            Event.CHECKPOINT,
+            attempt=checkpoint.attempt,
+            detail={run_events.CHECKPOINT: json.loads(checkpoint.to_json())},
         )
 
     def _fit_from_bag(self, bag: str) -> FitReport:
@@ -571,7 +577,9 @@ class LearnerNode(Node):
             fit = self.learner.refine_with(recording, f"attempt {k} from {bag}")
             self._publish_map(fit)
         self._event(
-            "phase_end", phase="babbling", detail={"dataset_bag": bag, "samples": len(self.learner.dataset)}
+            Event.PHASE_END,
+            phase="babbling",
+            detail={"dataset_bag": bag, "samples": len(self.learner.dataset)},
         )
         return fit
 
@@ -641,7 +649,7 @@ class LearnerNode(Node):
 
     def _event(
         self,
-        event: str,
+        event: Event,
         phase: str = "",
         attempt: int = 0,
         features: np.ndarray | None = None,
@@ -651,7 +659,7 @@ class LearnerNode(Node):
         msg = LearnerEvent(
             header=Header(stamp=self.get_clock().now().to_msg()),
             run_id=self.run_id,
-            event=event,
+            event=event.value,
             phase=phase,
             attempt=attempt,
             features=np.asarray(features if features is not None else [], dtype=np.float64),
@@ -667,20 +675,21 @@ class LearnerNode(Node):
             setattr(msg, name, float(value))
         self._events.publish(msg)
 
-    def _segment_event(self, event: str, recording: Recording | None = None) -> None:
+    def _segment_event(self, event: Event, recording: Recording | None = None) -> None:
         """A babbling segment's start, or its end with where its ticks are (for reading the bag back)."""
         self._event(
-            event, phase="babbling", detail=_segment_detail(recording) if recording is not None else {}
+            event,
+            phase="babbling",
+            detail=run_events.segment_detail(recording) if recording is not None else {},
         )
 
     def _attempt_start(
         self, phase: str, number: int, features: np.ndarray | None, cycle: LimitCycleConfig
     ) -> None:
         """An attempt's start, with one cycle of its desired angles (N x 2, rad) for live viewers."""
-        detail: dict[str, object] = {"control": self.learner.config.control.value}
-        if features is not None:
-            detail["desired_cycle_rad"] = cycle_kinematics(features, cycle)[:, :2].tolist()
-        self._event("attempt_start", phase=phase, attempt=number, features=features, detail=detail)
+        desired = cycle_kinematics(features, cycle)[:, :2].tolist() if features is not None else None
+        detail = run_events.attempt_start_detail(self.learner.config.control.value, desired)
+        self._event(Event.ATTEMPT_START, phase=phase, attempt=number, features=features, detail=detail)
 
     def _attempt_end(
         self,
@@ -691,15 +700,11 @@ class LearnerNode(Node):
         best: float = math.nan,
     ) -> None:
         self._event(
-            "attempt_end",
+            Event.ATTEMPT_END,
             phase=phase,
             attempt=number,
             features=outcome.features,
-            detail={
-                "desired_rad": outcome.desired[:, :2].tolist(),
-                **_segment_detail(outcome.recording),
-                **_control_detail(outcome),
-            },
+            detail=run_events.attempt_end_detail(outcome),
             reward_mm=outcome.reward_mm,
             energy_j=outcome.energy_j,
             tracking_mse_deg2=outcome.tracking.mse_deg2,
@@ -738,22 +743,10 @@ class _BabblingSegments:
         progress: ProgressCallback | None = None,
         cancel: threading.Event | None = None,
     ) -> Recording:
-        self._node._segment_event("phase_start")
+        self._node._segment_event(Event.PHASE_START)
         recording = self._node.rig.play(activations, progress, cancel)
-        self._node._segment_event("phase_end", recording)
+        self._node._segment_event(Event.PHASE_END, recording)
         return recording
-
-
-def _control_detail(outcome: AttemptOutcome) -> dict[str, object]:
-    """How the attempt was played; in closed loop the rig's velocity correction of each tick (rad/s)."""
-    if outcome.correction_rad_s is None:
-        return {"control": outcome.control.value}
-    return {"control": outcome.control.value, "correction_rad_s": outcome.correction_rad_s.tolist()}
-
-
-def _segment_detail(recording: Recording) -> dict[str, int]:
-    """Where a played sequence's ticks are: their count and the first one's stamp (ns)."""
-    return {"ticks": len(recording), "first_tick_stamp_ns": round(float(recording.t_s[0]) * 1e9)}
 
 
 def _require_goal(condition: bool, reason: str) -> None:

@@ -43,6 +43,7 @@ from g2p.bags.ticks import TickAssembler, Ticks, rig_topic_names
 from g2p.description import LegDescription
 from g2p.plant import N_JOINTS, Recording, concatenate
 from g2p.rig import DEFAULT_NAMESPACE
+from g2p.run_events import CONTROL, DESIRED_RAD, FIRST_TICK_STAMP_NS, TICKS, Event
 from g2p.urdf import UrdfError, parse_leg_urdf
 
 BABBLING = "babbling"
@@ -84,8 +85,8 @@ class AttemptData:
         Runs recorded without the key were open loop.
         """
         for event in (self.end, self.start):
-            if event is not None and isinstance(event.detail.get("control"), str):
-                return str(event.detail["control"])
+            if event is not None and isinstance(event.detail.get(CONTROL), str):
+                return str(event.detail[CONTROL])
         return "open"
 
     @property
@@ -268,12 +269,12 @@ def _map_arrays(snapshot: InverseMapSnapshot) -> dict[str, FloatArray]:
 def _babbling(ticks: Ticks, events: list[RunEvent]) -> list[Recording]:
     segments = []
     for i, start in enumerate(events):
-        if start.phase != BABBLING or start.event != "phase_start":
+        if start.phase != BABBLING or start.event != Event.PHASE_START:
             continue
         later = events[i + 1 :]
-        end = next((e for e in later if e.phase == BABBLING and e.event == "phase_end"), None)
+        end = next((e for e in later if e.phase == BABBLING and e.event == Event.PHASE_END), None)
         closes = end is not None and not any(
-            e.event == "phase_start" and e.stamp_ns < end.stamp_ns for e in later
+            e.event == Event.PHASE_START and e.stamp_ns < end.stamp_ns for e in later
         )
         segments.append(_segment(ticks, start, end if closes else next(iter(later), None), closes))
     return segments
@@ -282,14 +283,14 @@ def _babbling(ticks: Ticks, events: list[RunEvent]) -> list[Recording]:
 def _attempts(ticks: Ticks, events: list[RunEvent]) -> list[AttemptData]:
     attempts = []
     for i, start in enumerate(events):
-        if start.event != "attempt_start":
+        if start.event != Event.ATTEMPT_START:
             continue
         later = events[i + 1 :]
         end = next(
             (
                 e
                 for e in later
-                if e.event == "attempt_end" and e.attempt == start.attempt and e.run_id == start.run_id
+                if e.event == Event.ATTEMPT_END and e.attempt == start.attempt and e.run_id == start.run_id
             ),
             None,
         )
@@ -303,7 +304,7 @@ def _attempts(ticks: Ticks, events: list[RunEvent]) -> list[AttemptData]:
                 start,
                 end,
                 recording,
-                _per_joint(start, end, "desired_rad"),
+                _per_joint(start, end, DESIRED_RAD),
                 _per_joint(start, end, "correction_rad_s"),
             )
         )
@@ -329,8 +330,8 @@ def _bounds(start: RunEvent, end: RunEvent | None, closes: bool) -> _Bounds:
     if end is None:
         return _Bounds(start.stamp_ns, int(_END_OF_TIME), False, None)
     detail = end.detail if closes else {}
-    first, ticks = detail.get("first_tick_stamp_ns"), detail.get("ticks")
-    desired = _per_joint(end, None, "desired_rad") if closes else None
+    first, ticks = detail.get(FIRST_TICK_STAMP_NS), detail.get(TICKS)
+    desired = _per_joint(end, None, DESIRED_RAD) if closes else None
     count = ticks if isinstance(ticks, int) else (len(desired) if desired is not None else None)
     high = int(_END_OF_TIME) if count is not None else end.stamp_ns
     if isinstance(first, int):

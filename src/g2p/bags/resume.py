@@ -22,9 +22,8 @@ from g2p.bags.recover import bag_is_complete, recover_bag
 from g2p.checkpoint import Checkpoint, CheckpointError
 from g2p.plant import Recording
 from g2p.rig import DEFAULT_NAMESPACE
+from g2p.run_events import CHECKPOINT, SEARCH, Event
 
-CHECKPOINT_EVENT = "checkpoint"
-RUN_START_EVENT = "run_start"
 TREADMILL_PHASES = ("exploration", "exploitation")
 
 
@@ -73,16 +72,16 @@ def resume_point(
     if not path.is_dir():
         raise ResumeError(f"{path}: not a bag directory")
     run = _read(path, rig_namespace)
-    starts = [e for e in run.events if e.event == RUN_START_EVENT and "search" in e.detail]
+    starts = [e for e in run.events if e.event == Event.RUN_START and SEARCH in e.detail]
     if not starts:
         raise ResumeError(f"{path}: no learn run in this bag (no run_start event with search settings)")
     start = starts[0]
     events = [e for e in run.events if e.run_id == start.run_id and e.stamp_ns >= start.stamp_ns]
-    checkpoints = [e for e in events if e.event == CHECKPOINT_EVENT]
+    checkpoints = [e for e in events if e.event == Event.CHECKPOINT]
     if not checkpoints:
         raise ResumeError(f"{path}: run {start.run_id} has no checkpoint (it ended before its first fit)")
     try:
-        checkpoint = Checkpoint.from_json(json.dumps(checkpoints[-1].detail.get("checkpoint")), str(path))
+        checkpoint = Checkpoint.from_json(json.dumps(checkpoints[-1].detail.get(CHECKPOINT)), str(path))
     except CheckpointError as err:
         raise ResumeError(str(err)) from err
     babbling = [
@@ -112,14 +111,14 @@ def resume_point(
         checkpoint=checkpoint,
         babbling=babbling,
         attempts=[completed[k] for k in range(1, checkpoint.attempt + 1)],
-        search=dict(start.detail["search"]),
+        search=dict(start.detail[SEARCH]),
         node_config=config if isinstance(config, dict) else None,
     )
 
 
 def _babbling_starts(run: RunData) -> list[int]:
     """The stamp of each babbling segment's opening event, in the order of `run.babbling_segments`."""
-    return [e.stamp_ns for e in run.events if e.phase == "babbling" and e.event == "phase_start"]
+    return [e.stamp_ns for e in run.events if e.phase == "babbling" and e.event == Event.PHASE_START]
 
 
 def _read(path: Path, rig_namespace: str) -> RunData:

@@ -15,6 +15,7 @@ import numpy as np
 
 from g2p.bags.dataset import AttemptData, RunData
 from g2p.bags.events import FloatArray
+from g2p.run_events import Event
 
 # G2P_FACTS.md: exploration stops when an attempt's belt travel exceeds 64 mm.
 PAPER_THRESHOLD_MM = 64.0
@@ -29,7 +30,7 @@ def find_threshold(run: RunData) -> tuple[float, str]:
     learner puts its search settings there); a recorded node configuration holding one; the paper's 64 mm.
     """
     for event in reversed(run.events):
-        value = _find_key(event.detail, "threshold_mm") if event.event == "run_start" else None
+        value = _find_key(event.detail, "threshold_mm") if event.event == Event.RUN_START else None
         if isinstance(value, int | float) and _is_number(value):
             return float(value), "run_start event"
     for topic, config in sorted(run.configs.items()):
@@ -46,7 +47,9 @@ def find_joint_limits(run: RunData) -> tuple[FloatArray | None, str]:
     node configuration holding one; the range babbling covered (or every tick's range without babbling).
     """
     for event in reversed(run.events):
-        limits = _limits(_find_key(event.detail, "joint_limits_rad")) if event.event == "run_start" else None
+        limits = (
+            _limits(_find_key(event.detail, "joint_limits_rad")) if event.event == Event.RUN_START else None
+        )
         if limits is not None:
             return limits, "run_start event"
     for topic, config in sorted(run.configs.items()):

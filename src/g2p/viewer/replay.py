@@ -28,6 +28,7 @@ from g2p.bags.events import LEARNER_EVENT_TYPE, RunEvent, run_event
 from g2p.bags.reader import BagReader
 from g2p.bags.ticks import rig_topic_names, stamp_ns
 from g2p.rig import DEFAULT_NAMESPACE
+from g2p.run_events import DESIRED_CYCLE_RAD, DESIRED_RAD, FIRST_TICK_STAMP_NS, Event
 from g2p.urdf import parse_leg_urdf
 from g2p.viewer.server import LegViewer
 
@@ -35,26 +36,26 @@ from g2p.viewer.server import LegViewer
 class _AttemptEnds:
     """What each attempt's end event tells about it, handed to its start event."""
 
-    _KEYS = ("desired_rad", "first_tick_stamp_ns")
+    _KEYS = (DESIRED_RAD, FIRST_TICK_STAMP_NS)
 
     def __init__(self, events: Iterable[RunEvent]) -> None:
         self._ends: dict[tuple[str, int], deque[dict[str, object]]] = defaultdict(deque)
         for e in events:
-            if e.event == "attempt_end":
+            if e.event == Event.ATTEMPT_END:
                 known = {k: e.detail[k] for k in self._KEYS if k in e.detail}
                 self._ends[(e.run_id, e.attempt)].append(known)
 
     def completed(self, start: RunEvent) -> RunEvent:
         """The start event with its attempt's desired angles and first tick, when the bag has them."""
         ends = self._ends.get((start.run_id, start.attempt))
-        if start.event != "attempt_start" or not ends:
+        if start.event != Event.ATTEMPT_START or not ends:
             return start
         known = ends.popleft()
         detail = dict(start.detail)
-        if "desired_rad" in known:
-            detail["desired_cycle_rad"] = known["desired_rad"]  # the whole attempt: row k is tick k
-        if "first_tick_stamp_ns" in known:
-            detail["first_tick_stamp_ns"] = known["first_tick_stamp_ns"]
+        if DESIRED_RAD in known:
+            detail[DESIRED_CYCLE_RAD] = known[DESIRED_RAD]  # the whole attempt: row k is tick k
+        if FIRST_TICK_STAMP_NS in known:
+            detail[FIRST_TICK_STAMP_NS] = known[FIRST_TICK_STAMP_NS]
         return dataclasses.replace(start, detail=detail)
 
 

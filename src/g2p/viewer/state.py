@@ -24,6 +24,7 @@ import numpy as np
 
 from g2p.bags.events import RunEvent
 from g2p.description import FloatArray, LegDescription, foot_path, forward_kinematics
+from g2p.run_events import CONTROL, DESIRED_CYCLE_RAD, FIRST_TICK_STAMP_NS, Event
 
 # Belt marks drawn every 50 mm, so that its travel is visible.
 BELT_MARK_SPACING_M = 0.05
@@ -132,7 +133,7 @@ def belt_marks_x(displacement_mm: float, half_length_m: float) -> FloatArray:
 
 
 def _desired_cycle(event: RunEvent) -> FloatArray | None:
-    value = event.detail.get("desired_cycle_rad")
+    value = event.detail.get(DESIRED_CYCLE_RAD)
     try:
         cycle = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
@@ -205,18 +206,18 @@ class ViewState:
 
     def event(self, event: RunEvent) -> AttemptSummary | None:
         """A learner event; returns the attempt's summary on "attempt_end"."""
-        if event.event == "attempt_start":
+        if event.event == Event.ATTEMPT_START:
             cycle = _desired_cycle(event)
             path = foot_path(self.description, cycle) if cycle is not None else None
-            first = event.detail.get("first_tick_stamp_ns")
+            first = event.detail.get(FIRST_TICK_STAMP_NS)
             first_ns = first - _STAMP_SLACK_NS if isinstance(first, int) else event.stamp_ns + 1
             seen = sum(1 for s in self._recent_stamps if s >= first_ns)
             self._attempt = _Attempt(event.attempt, event.phase, first_ns, cycle, path, ticks=seen)
             return None
-        if event.event != "attempt_end":
+        if event.event != Event.ATTEMPT_END:
             return None
         self._attempt = None
-        control = event.detail.get("control")
+        control = event.detail.get(CONTROL)
         summary = AttemptSummary(
             stamp_ns=event.stamp_ns,
             attempt=event.attempt,
