@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -33,6 +33,7 @@ from g2p.checkpoint import CheckpointError, capture, restore
 from g2p.config import require, require_positive
 from g2p.experiments import (
     AttemptReport,
+    Experiment,
     Generalization,
     TrackingReport,
     TrajectoryRefinement,
@@ -48,7 +49,6 @@ from g2p.rig import (
     DEFAULT_NAMESPACE,
     ProgressCallback,
     RetryingRig,
-    Rig,
     RigCancelled,
     RigError,
     RigUnreachable,
@@ -144,21 +144,6 @@ class _Step:
     phase: str
     number: int
     features: np.ndarray | None = None
-
-
-class Experiment(Protocol):
-    """A core experiment stepped one attempt at a time (g2p.experiments)."""
-
-    cycle: LimitCycleConfig  # the limit-cycle parameters its attempts play
-
-    @property
-    def finished(self) -> bool:
-        """Whether the experiment is over."""
-
-    def next_attempt(
-        self, rig: Rig, progress: ProgressCallback | None = None, cancel: threading.Event | None = None
-    ) -> AttemptReport | TrackingReport:
-        """Run the next step on the rig and report it."""
 
 
 class GoalRejected(ValueError):

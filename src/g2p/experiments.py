@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -232,6 +233,21 @@ class TrajectoryRefinement:
         )
         self.outcomes.append(outcome)
         return TrackingReport("training", k + 1, self.features, outcome.tracking, outcome, fit)
+
+
+class Experiment(Protocol):
+    """An experiment stepped one attempt at a time: TreadmillRun, TrajectoryRefinement, Generalization."""
+
+    cycle: LimitCycleConfig  # the limit-cycle parameters its attempts play
+
+    @property
+    def finished(self) -> bool:
+        """Whether the experiment is over."""
+
+    def next_attempt(
+        self, rig: Rig, progress: ProgressCallback | None = None, cancel: threading.Event | None = None
+    ) -> AttemptReport | TrackingReport:
+        """Run the next step on the rig and report it."""
 
 
 def refine_one_trajectory(
