@@ -11,7 +11,8 @@ from std_msgs.msg import Header
 
 from g2p.bags.interfaces import InterfaceLibrary, TypeRegistry, ament_share_dirs
 from g2p.plant import TickSample
-from g2p_ros.convert import TickSerializer, stamp_ns, tick_messages, tick_sample, time_from_ns
+from g2p_ros.convert import stamp_ns, tick_messages, tick_sample, time_from_ns
+from g2p_ros.tick_serializer import TickSerializer
 
 
 def _sample(rng: np.random.Generator, t_s: float) -> TickSample:
