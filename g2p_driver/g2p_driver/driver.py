@@ -40,7 +40,7 @@ from g2p.tick_loop import Pacing
 from g2p.urdf import UrdfError, leg_urdf, packaged_urdf_path, read_leg_urdf
 from g2p_ros import contract
 from g2p_ros.description import publish_robot_description
-from g2p_ros.params import config_as_dict, declare_config, publish_config
+from g2p_ros.params import config_as_dict, declare_config, publish_config, report_invalid_parameter
 from g2p_ros.rig_server import RigServer, RigServerConfig
 from g2p_ros.signals import init_with_stop_event, spin_until_stopped
 from g2p_ros.spinner import MultiThreadedExecutor
@@ -350,8 +350,7 @@ def main(args: list[str] | None = None) -> None:
             node.trigger_activate()
         spin_until_stopped(executor, stop)
     except ConfigError as err:
-        print(f"g2p_driver: invalid parameter {err}", file=sys.stderr)
-        sys.exit(2)
+        sys.exit(report_invalid_parameter("g2p_driver", err))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

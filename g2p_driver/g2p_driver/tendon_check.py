@@ -17,7 +17,7 @@ from rclpy.node import Node
 from g2p.config import ConfigError
 from g2p.hardware.tendon_check import TendonCheckConfig, check_tendons
 from g2p.rig import DEFAULT_NAMESPACE, RigError
-from g2p_ros.params import declare_config
+from g2p_ros.params import declare_config, report_invalid_parameter
 from g2p_ros.rig_client import RigClient
 from g2p_ros.spinner import BackgroundSpinner, MultiThreadedExecutor
 
@@ -40,7 +40,7 @@ def main(args: list[str] | None = None) -> None:
         print(report.text())
         code = 0 if report.ok else 1
     except ConfigError as err:
-        print(f"tendon_check: invalid parameter {err}", file=sys.stderr)
+        code = report_invalid_parameter("tendon_check", err)
     except RigError as err:
         print(f"tendon_check: {err}", file=sys.stderr)
     except KeyboardInterrupt:

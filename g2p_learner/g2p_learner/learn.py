@@ -28,6 +28,7 @@ from g2p.config import ConfigError
 from g2p_interfaces.action import Learn
 from g2p_learner.learner_node import LearnerNode
 from g2p_ros.contract import ServerWatch, action_name, wait_all
+from g2p_ros.params import report_invalid_parameter
 from g2p_ros.signals import init_with_stop_event
 from g2p_ros.spinner import BackgroundSpinner, MultiThreadedExecutor, wait_for_future
 
@@ -181,8 +182,7 @@ def main(args: list[str] | None = None) -> None:
             goal = Learn.Goal(dataset_bag=options.dataset_bag, resume_bag=options.resume)
             code = run_learning(node, client, goal, stop)
     except ConfigError as err:
-        print(f"learn: invalid parameter {err}", file=sys.stderr)
-        code = 2
+        code = report_invalid_parameter("learn", err)
     finally:
         if node is not None:
             node.stop_goals(timeout_s=10.0)  # while the executor still spins: cancels reach the rig

@@ -11,6 +11,7 @@ import dataclasses
 import enum
 import json
 import re
+import sys
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -32,6 +33,15 @@ CONFIG_QOS = QoSProfile(
 )
 
 T = TypeVar("T")
+
+# An executable's exit status for a parameter it cannot use.
+INVALID_PARAMETER_EXIT = 2
+
+
+def report_invalid_parameter(program: str, err: ConfigError) -> int:
+    """Print `program: invalid parameter <what and why>` to stderr; returns the exit status (2)."""
+    print(f"{program}: invalid parameter {err}", file=sys.stderr)
+    return INVALID_PARAMETER_EXIT
 
 
 def declare_config(node: Node, cls: type[T], prefix: str = "", exclude: tuple[str, ...] = ()) -> T:

@@ -17,7 +17,7 @@ from g2p.sim.description import leg_description
 from g2p.sim.model import ModelError
 from g2p.tick_loop import Pacing
 from g2p_ros.description import publish_robot_description
-from g2p_ros.params import config_as_dict, declare_config, publish_config
+from g2p_ros.params import config_as_dict, declare_config, publish_config, report_invalid_parameter
 from g2p_ros.rig_server import RigServer, RigServerConfig
 from g2p_ros.signals import init_with_stop_event, spin_until_stopped
 from g2p_ros.spinner import MultiThreadedExecutor
@@ -100,8 +100,7 @@ def main(args: list[str] | None = None) -> None:
         executor.add_node(node)
         spin_until_stopped(executor, stop)
     except ConfigError as err:  # a bad leg.calibration file included
-        print(f"g2p_sim: invalid parameter {err}", file=sys.stderr)
-        sys.exit(2)
+        sys.exit(report_invalid_parameter("g2p_sim", err))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
