@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from g2p.bags.reader import BagReader
-from g2p.bags.ticks import stamp_ns
+from g2p.bags.ticks import header_stamp_ns
 from g2p.urdf import packaged_leg_description
 from g2p.viewer.server import LegViewer, ViewerConfig
 
@@ -47,7 +47,7 @@ def per_tick() -> None:
     """Print the viewer's cost per tick and per scene update, a client subscribed."""
     with BagReader(SAMPLE) as reader:
         states = [
-            (stamp_ns(m.msg.header), np.asarray(m.msg.position[:2]), np.asarray(m.msg.velocity[:2]))
+            (header_stamp_ns(m.msg.header), np.asarray(m.msg.position[:2]), np.asarray(m.msg.velocity[:2]))
             for m in reader.messages(["/leg/joint_states"])
         ]
     with LegViewer(packaged_leg_description(), ViewerConfig(port=0)) as viewer:

@@ -98,11 +98,6 @@ def tick_sample(
     )
 
 
-def stamp_ns(t_s: float) -> int:
-    """Integer nanoseconds of a stamp in seconds (rounded to the nanosecond)."""
-    return round(t_s * 1e9)
-
-
 def rig_samples_msg(recording: Recording, stamps_ns: np.ndarray) -> RigSamples:
     """Pack a recording into RigSamples, with the ticks' header stamps (ns), shape (N,)."""
     return RigSamples(

@@ -23,11 +23,11 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
-from g2p.plant import TickSample
+from g2p.plant import TickSample, stamp_ns
 from g2p.tick_loop import Tick
 from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
 from g2p_ros import contract
-from g2p_ros.convert import stamp_ns, time_from_ns
+from g2p_ros.convert import time_from_ns
 from g2p_ros.tick_serializer import TickSerializer
 
 # Ticks the loop may run ahead of the publisher before it waits (3 s of rig time at 78 Hz).

@@ -42,13 +42,18 @@ _WIDTHS = {
 }
 
 
+def stamp_ns(t_s: float) -> int:
+    """A time in seconds as whole nanoseconds, as a ROS stamp carries it (rounded)."""
+    return round(t_s * 1e9)
+
+
 def on_stamp_grid(t_s: float) -> float:
     """`t_s` in whole nanoseconds, as a ROS stamp carries it, back in seconds (s).
 
     Every rig reports its ticks' times so (g2p.tick_loop): in-process and over ROS, a learner gets the
     same floats.
     """
-    return round(t_s * 1e9) * 1e-9
+    return stamp_ns(t_s) * 1e-9
 
 
 @dataclass(frozen=True)

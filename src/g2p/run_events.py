@@ -13,7 +13,7 @@ import enum
 from typing import Any
 
 from g2p.attempt import AttemptOutcome
-from g2p.plant import Recording
+from g2p.plant import Recording, stamp_ns
 
 
 class Event(str, enum.Enum):
@@ -60,7 +60,7 @@ RESUME = "resume"
 
 def segment_detail(recording: Recording) -> dict[str, int]:
     """Where a played sequence's ticks are: their count and the first one's stamp (ns)."""
-    return {TICKS: len(recording), FIRST_TICK_STAMP_NS: round(float(recording.t_s[0]) * 1e9)}
+    return {TICKS: len(recording), FIRST_TICK_STAMP_NS: stamp_ns(float(recording.t_s[0]))}
 
 
 def attempt_start_detail(control: str, desired_cycle_rad: list[list[float]] | None) -> dict[str, Any]:

@@ -10,8 +10,8 @@ from rclpy.serialization import deserialize_message
 from std_msgs.msg import Header
 
 from g2p.bags.interfaces import InterfaceLibrary, TypeRegistry, ament_share_dirs
-from g2p.plant import TickSample
-from g2p_ros.convert import stamp_ns, tick_messages, tick_sample, time_from_ns
+from g2p.plant import TickSample, stamp_ns
+from g2p_ros.convert import tick_messages, tick_sample, time_from_ns
 from g2p_ros.tick_serializer import TickSerializer
 
 

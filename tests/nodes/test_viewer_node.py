@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 from std_msgs.msg import Header
 
+from g2p.bags.ticks import header_stamp_ns
 from g2p_interfaces.msg import LearnerEvent
 from g2p_ros import contract
 from tests.nodes.rig_nodes import RigPeer, start_sim
@@ -44,11 +45,6 @@ def learner_event(kind: str, stamp_ns: int, **fields: object) -> LearnerEvent:
     return msg
 
 
-def stamp_ns(msg: object) -> int:
-    stamp = msg.header.stamp  # type: ignore[attr-defined]
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
-
-
 @pytest.fixture
 def peer() -> Iterator[RigPeer]:
     p = RigPeer()
@@ -71,7 +67,11 @@ def test_the_live_viewer_shows_the_rigs_joint_states_on_its_own_leg(tmp_path: Pa
 
     def peer_latest() -> int:
         with peer.lock:
-            return stamp_ns(peer.received["joint_states"][-1]) if peer.received["joint_states"] else 0
+            return (
+                header_stamp_ns(peer.received["joint_states"][-1].header)
+                if peer.received["joint_states"]
+                else 0
+            )
 
     wait_until(lambda: peer_latest() >= viewer_first, 30.0, "the rig's joint states at the peer")
     cycle = [[0.1 * k, -0.05 * k] for k in range(7)]
@@ -85,7 +85,10 @@ def test_the_live_viewer_shows_the_rigs_joint_states_on_its_own_leg(tmp_path: Pa
     assert received.returncode == 0, received.stderr + viewer.log()
 
     with peer.lock:
-        rig = {stamp_ns(m): (list(m.position), list(m.velocity)) for m in peer.received["joint_states"]}
+        rig = {
+            header_stamp_ns(m.header): (list(m.position), list(m.velocity))
+            for m in peer.received["joint_states"]
+        }
     # Ticks from before the peer's subscription matched the rig's reached only the viewer.
     joints = [(t, m) for t, m in received.messages["/view/joints"] if t >= min(rig)]
     assert len(joints) >= 150

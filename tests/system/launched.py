@@ -21,6 +21,7 @@ import numpy as np
 from ament_index_python.packages import get_package_prefix, get_package_share_directory
 
 from g2p.bags import BagReader, bag_is_complete
+from g2p.bags.ticks import header_stamp_ns
 from g2p.plant import NOMINAL_TICK_HZ
 from g2p.safety import BASELINE_ACTIVATION
 from g2p_bringup.dds import one_host_environment
@@ -118,11 +119,6 @@ class LaunchedGraph:
             log.close()
 
 
-def stamp_ns(stamp: Any) -> int:
-    """A header stamp (builtin_interfaces/Time) in ns."""
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
-
-
 def rig_stop(rig_log: str) -> tuple[int, int]:
     """The rig's own account of its stop: ticks published, and the stamp of the last (ns)."""
     found = STOP_LINE.findall(rig_log)
@@ -148,9 +144,9 @@ def assert_every_tick_recorded(bag_path: Path, rig_log: str) -> int:
             msgs = list(bag.messages([topic]))
             # In header-stamp order: under sim time, ticks between two /clock messages share a recording
             # time, and the bag's order among equal recording times is not the publishing order.
-            order = np.argsort([stamp_ns(m.msg.header.stamp) for m in msgs], kind="stable")
+            order = np.argsort([header_stamp_ns(m.msg.header) for m in msgs], kind="stable")
             msgs = [msgs[k] for k in order]
-            stamps[topic] = np.array([stamp_ns(m.msg.header.stamp) for m in msgs])
+            stamps[topic] = np.array([header_stamp_ns(m.msg.header) for m in msgs])
     np.testing.assert_array_equal(msgs[-1].msg.activation, BASELINE_ACTIVATION)  # applied_activation
     # Aligned on the last tick: a tick missing on one topic shifts it against the others.
     n = min(len(s) for s in stamps.values())

@@ -335,8 +335,8 @@ def _bounds(start: RunEvent, end: RunEvent | None, closes: bool) -> _Bounds:
     count = ticks if isinstance(ticks, int) else (len(desired) if desired is not None else None)
     high = int(_END_OF_TIME) if count is not None else end.stamp_ns
     if isinstance(first, int):
-        # The learner derives the stamp from float seconds, exact to about a microsecond; ticks are
-        # 12.8 ms apart, so a millisecond of slack finds the right tick.
+        # The learner derives the stamp from float seconds (exact on the stamp grid); a millisecond of
+        # slack, far below the 12.8 ms between ticks, finds the right tick all the same.
         return _Bounds(first - _STAMP_SLACK_NS, high, True, count)
     return _Bounds(start.stamp_ns, high, False, count)
 

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from g2p.bags.ticks import stamp_ns
+from g2p.bags.ticks import header_stamp_ns
 
 LEARNER_EVENT_TYPE = "g2p_interfaces/msg/LearnerEvent"
 INVERSE_MAP_TYPE = "g2p_interfaces/msg/InverseMapWeights"
@@ -83,7 +83,7 @@ class InverseMapSnapshot:
 def run_event(msg: Any, log_time_ns: int) -> RunEvent:
     """A decoded LearnerEvent message as a RunEvent."""
     return RunEvent(
-        stamp_ns=stamp_ns(msg.header),
+        stamp_ns=header_stamp_ns(msg.header),
         log_time_ns=log_time_ns,
         run_id=str(msg.run_id),
         event=str(msg.event),
@@ -127,7 +127,7 @@ def inverse_map_snapshot(msg: Any) -> InverseMapSnapshot:
             )
         arrays[str(array.name)] = data.reshape(shape)
     return InverseMapSnapshot(
-        stamp_ns=stamp_ns(msg.header),
+        stamp_ns=header_stamp_ns(msg.header),
         run_id=str(msg.run_id),
         refinement=int(msg.refinement),
         format_version=int(msg.format_version),

@@ -28,7 +28,7 @@ RIG_TOPICS: dict[str, str] = {
 }
 
 
-def stamp_ns(header: Any) -> int:
+def header_stamp_ns(header: Any) -> int:
     """A std_msgs/Header's stamp in nanoseconds."""
     return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
@@ -105,7 +105,7 @@ class TickAssembler:
 
     def add(self, role: str, msg: Any) -> None:
         """Add one decoded message of the rig topic `role`."""
-        stamp = stamp_ns(msg.header)
+        stamp = header_stamp_ns(msg.header)
         occurrence = self._seen[role].get(stamp, 0)
         self._seen[role][stamp] = occurrence + 1
         self._groups.setdefault((stamp, occurrence), {})[role] = msg
@@ -151,7 +151,7 @@ def _row(group: Mapping[str, Any]) -> dict[str, Any]:
     if activation.shape != (N_MOTORS,):
         raise ValueError(f"applied_activation has {activation.size} values, expected {N_MOTORS}")
     return {
-        "t_s": stamp_ns(joints.header) * 1e-9,
+        "t_s": header_stamp_ns(joints.header) * 1e-9,
         "activation": activation,
         "position_rad": position[order],
         "velocity_rad_s": velocity[order] if velocity.size else np.full(N_JOINTS, np.nan),

@@ -26,7 +26,7 @@ from g2p.bags.dataset import ROBOT_DESCRIPTION, ROBOT_DESCRIPTION_TYPE
 from g2p.bags.errors import BagReadError
 from g2p.bags.events import LEARNER_EVENT_TYPE, RunEvent, run_event
 from g2p.bags.reader import BagReader
-from g2p.bags.ticks import rig_topic_names, stamp_ns
+from g2p.bags.ticks import header_stamp_ns, rig_topic_names
 from g2p.rig import DEFAULT_NAMESPACE
 from g2p.run_events import DESIRED_CYCLE_RAD, DESIRED_RAD, FIRST_TICK_STAMP_NS, Event
 from g2p.urdf import parse_leg_urdf
@@ -106,7 +106,7 @@ def replay_bag(
             if stop is not None and stop.is_set():
                 break
             if m.topic == rig["joint_states"]:
-                stamp = stamp_ns(m.msg.header)
+                stamp = header_stamp_ns(m.msg.header)
                 if start is None:
                     start = (time.monotonic(), stamp)
                 wait = start[0] + (stamp - start[1]) * 1e-9 / rate - time.monotonic()

@@ -28,8 +28,9 @@ from g2p.run_events import CONTROL, DESIRED_CYCLE_RAD, FIRST_TICK_STAMP_NS, Even
 
 # Belt marks drawn every 50 mm, so that its travel is visible.
 BELT_MARK_SPACING_M = 0.05
-# The learner derives "first_tick_stamp_ns" from float seconds, exact to about a microsecond; ticks are
-# 12.8 ms apart, so a millisecond of slack finds the right tick (as g2p.bags.dataset does).
+# "first_tick_stamp_ns" is the tick's stamp, from its time in float seconds (exact on the stamp grid); a
+# millisecond of slack, far below the 12.8 ms between ticks, finds the right tick all the same (as
+# g2p.bags.dataset does).
 _STAMP_SLACK_NS = 1_000_000
 # Ticks an attempt's start event may arrive behind its first tick (10 s at 78 Hz).
 _RECENT_TICKS = 780
