@@ -39,9 +39,9 @@ from g2p.rig import DEFAULT_NAMESPACE
 from g2p.tick_loop import Pacing
 from g2p.urdf import UrdfError, leg_urdf, packaged_urdf_path, read_leg_urdf
 from g2p_ros import contract
-from g2p_ros.description import publish_robot_description
 from g2p_ros.params import config_as_dict, declare_config, publish_config, report_invalid_parameter
 from g2p_ros.rig_server import RigServer, RigServerConfig
+from g2p_ros.robot_description import publish_robot_description
 from g2p_ros.signals import init_with_stop_event, spin_until_stopped
 from g2p_ros.spinner import MultiThreadedExecutor
 
@@ -156,7 +156,7 @@ class DriverNode(LifecycleNode):
         """
         if self.fake_config is not None:
             from g2p.hardware.fake_rig import fake_leg_config
-            from g2p.sim.description import config_description
+            from g2p.sim.model_description import config_description
 
             return leg_urdf(config_description(fake_leg_config(self.fake_config)))
         path = Path(self.config.description_file) if self.config.description_file else packaged_urdf_path()

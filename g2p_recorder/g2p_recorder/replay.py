@@ -3,7 +3,7 @@
 Options like `ros2 bag play`: --rate, --clock [HZ], --topics, --remap from:=to, --loop, --delay; and
 --wait-for-subscribers S to start only once every replayed topic has a subscriber (or S seconds
 passed). Each topic is published with the QoS its recorded publishers offered (see
-`g2p.bags.qos.replay_qos`); the timing and topic plan come from `g2p.bags.replay`.
+`g2p.bags.qos.replay_qos`); the timing and topic plan come from `g2p.bags.replay_plan`.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from rclpy.publisher import Publisher
 from rosgraph_msgs.msg import Clock
 
 from g2p.bags import BagError, BagReader
-from g2p.bags.replay import ReplayOptions, ReplayTopic, Timeline, parse_remap, plan_topics
+from g2p.bags.replay_plan import ReplayOptions, ReplayTopic, Timeline, parse_remap, plan_topics
 from g2p.config import ConfigError
 from g2p_recorder.record import message_class, qos_profile
 from g2p_ros import contract

@@ -13,12 +13,12 @@ from rclpy.node import Node
 from g2p.config import ConfigError
 from g2p.rig import DEFAULT_NAMESPACE
 from g2p.sim import MujocoLeg, MujocoLegConfig
-from g2p.sim.description import leg_description
 from g2p.sim.model import ModelError
+from g2p.sim.model_description import leg_description
 from g2p.tick_loop import Pacing
-from g2p_ros.description import publish_robot_description
 from g2p_ros.params import config_as_dict, declare_config, publish_config, report_invalid_parameter
 from g2p_ros.rig_server import RigServer, RigServerConfig
+from g2p_ros.robot_description import publish_robot_description
 from g2p_ros.signals import init_with_stop_event, spin_until_stopped
 from g2p_ros.spinner import MultiThreadedExecutor
 

@@ -52,7 +52,7 @@ class CheckpointError(ValueError):
 
 
 @dataclass(frozen=True, eq=False)
-class Segment:
+class SegmentDigest:
     """One segment of the learner's dataset, as far as a checkpoint needs to recognize it.
 
     Attributes:
@@ -112,7 +112,7 @@ class Checkpoint:
     rng_states: Mapping[str, Mapping[str, Any]]
     search: SearchSnapshot
     pending_features: FloatArray | None
-    segments: tuple[Segment, ...]
+    segments: tuple[SegmentDigest, ...]
 
     @property
     def n_babbling_segments(self) -> int:
@@ -371,11 +371,11 @@ def _conclusions(s: SearchSnapshot) -> dict[str, object]:
     }
 
 
-def _segment(label: str, pairs: TrainingPairs) -> Segment:
+def _segment(label: str, pairs: TrainingPairs) -> SegmentDigest:
     digest = hashlib.sha256()
     digest.update(np.ascontiguousarray(pairs.kinematics, dtype=np.float64).tobytes())
     digest.update(np.ascontiguousarray(pairs.activation, dtype=np.float64).tobytes())
-    return Segment(label, len(pairs), digest.hexdigest()[:_DIGEST_HEX])
+    return SegmentDigest(label, len(pairs), digest.hexdigest()[:_DIGEST_HEX])
 
 
 class _Reader:
@@ -459,7 +459,7 @@ class _Reader:
             n_exploitation,
         )
 
-    def segment(self, doc: Any, k: int) -> Segment:
+    def segment(self, doc: Any, k: int) -> SegmentDigest:
         where = f"segments[{k}]."
         if not isinstance(doc, dict):
             raise CheckpointError(f"{self.source}: {where[:-1]} must be an object, got {doc!r:.80}")
@@ -468,7 +468,7 @@ class _Reader:
             raise CheckpointError(
                 f"{self.source}: {where}digest must be {_DIGEST_HEX} hex digits, got {digest!r}"
             )
-        return Segment(self.get(doc, "label", str, where), self.count(doc, "n_samples", where), digest)
+        return SegmentDigest(self.get(doc, "label", str, where), self.count(doc, "n_samples", where), digest)
 
 
 __all__ = [
@@ -477,7 +477,7 @@ __all__ = [
     "Checkpoint",
     "CheckpointError",
     "SearchSnapshot",
-    "Segment",
+    "SegmentDigest",
     "capture",
     "restore",
 ]

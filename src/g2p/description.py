@@ -1,8 +1,8 @@
 """The leg's geometry for drawing it: link lengths, joint limits, foot pad, and its forward kinematics.
 
-One `LegDescription` is taken from the MuJoCo model the simulator runs (g2p.sim.description), turned into
-the URDF the rig nodes publish as `robot_description` (g2p.urdf), and read back from that URDF by the
-viewer and the report, so every drawing of the leg is the leg that ran. numpy only.
+One `LegDescription` is taken from the MuJoCo model the simulator runs (g2p.sim.model_description),
+turned into the URDF the rig nodes publish as `robot_description` (g2p.urdf), and read back from that URDF
+by the viewer and the report, so every drawing of the leg is the leg that ran. numpy only.
 
 Frame (the model's, docs/SIMULATOR.md): the belt surface is z = 0, the leg faces +x, the plane of motion
 is x-z, every hinge turns about -y. A positive angle is counter-clockwise seen with +x to the right and z

@@ -4,7 +4,7 @@ The rig nodes publish `leg_urdf(description)` latched on `robot_description`, so
 RViz or Foxglove draw the leg from `joint_states`; the viewer and the report read it back with
 `parse_leg_urdf`. Every float is written with repr, so `parse_leg_urdf(leg_urdf(d)) == d` exactly.
 `packaged_leg_description()` reads the URDF shipped in g2p/models/leg.urdf (generated from leg.xml at the
-treadmill carriage height by `python -m g2p.sim.description`), for machines without MuJoCo.
+treadmill carriage height by `python -m g2p.sim.model_description`), for machines without MuJoCo.
 
 The tree, in the model's frame (g2p.description: belt surface z = 0, leg facing +x, hinges about -y):
 
@@ -146,7 +146,8 @@ def leg_urdf(description: LegDescription) -> str:
     robot.append(
         ET.Comment(
             " The G2P leg, generated from its MuJoCo model by g2p.urdf.leg_urdf (do not edit). Regenerate"
-            " the packaged g2p/models/leg.urdf with python -m g2p.sim.description > src/g2p/models/leg.urdf "
+            " the packaged g2p/models/leg.urdf with"
+            " python -m g2p.sim.model_description > src/g2p/models/leg.urdf "
         )
     )
     for name, rgba in _COLOURS.items():

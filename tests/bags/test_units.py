@@ -12,7 +12,7 @@ from g2p.bags import BagWriteError, TypeRegistry, create_run_bag, read_metadata
 from g2p.bags.config import RecorderConfig
 from g2p.bags.metadata import TopicInfo
 from g2p.bags.qos import INFINITE, EndpointQos, duration_qos_time, make_qos, recording_qos, replay_qos
-from g2p.bags.replay import ReplayOptions, Timeline, parse_remap, plan_topics
+from g2p.bags.replay_plan import ReplayOptions, Timeline, parse_remap, plan_topics
 from g2p.bags.runs import is_run_id, new_run_id
 from g2p.bags.selection import TopicSelection, is_hidden
 from g2p.config import ConfigError

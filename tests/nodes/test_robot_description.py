@@ -20,7 +20,7 @@ from g2p.bags import BagReader
 from g2p.hardware.fake_rig import FakeRigConfig, fake_leg_config
 from g2p.sim import MujocoLegConfig
 from g2p.sim.config import TREADMILL_CARRIAGE_HEIGHT_M, packaged_model_path
-from g2p.sim.description import config_description
+from g2p.sim.model_description import config_description
 from g2p.urdf import leg_urdf, packaged_leg_description, packaged_urdf_path, parse_leg_urdf
 from g2p_ros import contract
 from tests.nodes.rig_nodes import start_driver, start_sim

@@ -1,6 +1,6 @@
 """The leg's URDF against the MuJoCo model, read through the mujoco API and a PyPI URDF parser (yourdfpy).
 
-The model's numbers are read here straight from the compiled MjModel (not through g2p.sim.description),
+The model's numbers are read here straight from the compiled MjModel (not through g2p.sim.model_description),
 the URDF's through yourdfpy, and the foot's position in a few postures is checked three ways: yourdfpy's
 forward kinematics, g2p.description.forward_kinematics and MuJoCo's own, and against positions by hand.
 """
@@ -19,11 +19,11 @@ import yourdfpy
 from g2p.description import forward_kinematics
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, TREADMILL_CARRIAGE_HEIGHT_M
 from g2p.sim.config import packaged_model_path
-from g2p.sim.description import leg_description, main
 from g2p.sim.model import load_leg_model
+from g2p.sim.model_description import leg_description, main
 from g2p.urdf import leg_urdf, packaged_urdf_path, parse_leg_urdf
 
-REGENERATE = "python -m g2p.sim.description > src/g2p/models/leg.urdf"
+REGENERATE = "python -m g2p.sim.model_description > src/g2p/models/leg.urdf"
 HEIGHTS = [TREADMILL_CARRIAGE_HEIGHT_M, AIR_CARRIAGE_HEIGHT_M]
 
 

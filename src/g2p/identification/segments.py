@@ -20,8 +20,8 @@ from g2p.description import LegDescription
 from g2p.plant import NOMINAL_TICK_HZ, FloatArray, Recording, concatenate
 from g2p.rig import DEFAULT_NAMESPACE
 from g2p.sim.config import TREADMILL_CARRIAGE_HEIGHT_M, MujocoLegConfig
-from g2p.sim.description import leg_description
 from g2p.sim.leg import MujocoLeg
+from g2p.sim.model_description import leg_description
 
 # A tick whose recorded duration is outside this share of the nominal period (a gap in the recording, or a
 # stamp out of order) is replayed with the nominal period: the physics is sub-stepped within a tick.

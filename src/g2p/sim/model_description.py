@@ -1,7 +1,7 @@
 """The leg's description (g2p.description) read from the compiled MuJoCo model the simulator runs.
 
-`python -m g2p.sim.description > src/g2p/models/leg.urdf` regenerates the packaged URDF (g2p.urdf) from the
-packaged model at the treadmill carriage height.
+`python -m g2p.sim.model_description > src/g2p/models/leg.urdf` regenerates the packaged URDF (g2p.urdf)
+from the packaged model at the treadmill carriage height.
 """
 
 from __future__ import annotations
@@ -116,9 +116,9 @@ def config_description(config: MujocoLegConfig) -> LegDescription:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Print the URDF of a leg model: `python -m g2p.sim.description > src/g2p/models/leg.urdf`."""
+    """Print the URDF of a leg model: `python -m g2p.sim.model_description > src/g2p/models/leg.urdf`."""
     parser = argparse.ArgumentParser(
-        prog="python -m g2p.sim.description",
+        prog="python -m g2p.sim.model_description",
         description="Print the URDF (robot_description) of the leg's MuJoCo model.",
     )
     parser.add_argument("--model", default="", help="MJCF file (default: the packaged g2p/models/leg.xml)")
