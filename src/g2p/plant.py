@@ -194,6 +194,11 @@ class Plant(Protocol):
         ...
 
 
+def hold(plant: Plant, activation: tuple[float, float, float] | FloatArray, ticks: int) -> Recording:
+    """Play one activation (3,) for `ticks` ticks; returns their samples (see `run_sequence`)."""
+    return run_sequence(plant, np.tile(np.asarray(activation, dtype=np.float64), (ticks, 1)))
+
+
 def run_sequence(plant: Plant, activations: FloatArray) -> Recording:
     """Play an activation sequence on a plant, one row per tick.
 
@@ -222,5 +227,8 @@ __all__ = [
     "Recording",
     "TickSample",
     "concatenate",
+    "hold",
+    "on_stamp_grid",
     "run_sequence",
+    "stamp_ns",
 ]

@@ -13,7 +13,7 @@ from dataclasses import fields
 import numpy as np
 import pytest
 
-from g2p.plant import N_JOINTS, N_MOTORS, Plant, Recording, TickSample, run_sequence
+from g2p.plant import N_JOINTS, N_MOTORS, Plant, TickSample, hold
 from g2p.safety import BASELINE_ACTIVATION, clamp_activation
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, TREADMILL_CARRIAGE_HEIGHT_M, MujocoLeg, MujocoLegConfig
 from tests.hardware.fake_legs import hardware_leg_on_fake_buses
@@ -47,10 +47,6 @@ def plant(request: pytest.FixtureRequest) -> Iterator[Plant]:
     p = factory()
     yield p
     p.close()
-
-
-def hold(plant: Plant, activation: tuple[float, float, float], ticks: int) -> Recording:
-    return run_sequence(plant, np.tile(np.asarray(activation, dtype=np.float64), (ticks, 1)))
 
 
 def ticks_for(plant: Plant, seconds: float) -> int:

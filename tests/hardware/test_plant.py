@@ -13,7 +13,7 @@ from g2p.hardware import HardwareFault, HardwareLeg, HardwareLegConfig, Monotoni
 from g2p.hardware.fake_chips import FaultKind
 from g2p.hardware.fake_rig import FakeRigConfig, fake_devices
 from g2p.hardware.plant import dither_activation
-from g2p.plant import Recording, run_sequence
+from g2p.plant import hold
 from g2p.sim import TREADMILL_CARRIAGE_HEIGHT_M
 from tests.hardware.fake_legs import FAST, fake_leg
 
@@ -24,10 +24,6 @@ BASELINE_DUTY = WIRING.pwm.duty(0.15)
 
 def duties(fake) -> np.ndarray:  # type: ignore[no-untyped-def]
     return np.array(fake.outputs_state()["duty"])
-
-
-def hold(leg: HardwareLeg, activation: tuple[float, float, float], ticks: int) -> Recording:
-    return run_sequence(leg, np.tile(np.asarray(activation), (ticks, 1)))
 
 
 def test_ticks_keep_absolute_deadlines_and_sample_currents_at_500_hz() -> None:

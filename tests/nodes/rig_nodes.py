@@ -25,6 +25,9 @@ from g2p_ros import contract
 from g2p_ros.rig_client import RigClient
 from tests.nodes.rosproc import NodeProcess, RosPeer, wait_until
 
+# The leg seed of the `fast_sim` fixture (tests/nodes/conftest.py).
+FAST_SIM_SEED = 3
+
 BASELINE = 0.15
 # Like the recorder: a reader history deep enough to absorb this process's pauses in fast simulation.
 DEEP_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)

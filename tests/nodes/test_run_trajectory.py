@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import signal
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import fields
 from pathlib import Path
 
@@ -24,10 +24,19 @@ from g2p.sim import MujocoLeg, MujocoLegConfig
 from g2p_interfaces.action import RunTrajectory
 from g2p_interfaces.msg import MotorActivation, NamedArray
 from g2p_ros.convert import map_from_weights, map_weights_arrays, recording_from_msg, trajectory_goal
-from tests.nodes.rig_nodes import BASELINE, RigPeer, at_baseline, is_off, outputs, start_driver, start_sim
+from tests.nodes.rig_nodes import (
+    BASELINE,
+    FAST_SIM_SEED,
+    RigPeer,
+    at_baseline,
+    is_off,
+    outputs,
+    start_driver,
+    start_sim,
+)
 from tests.nodes.rosproc import NodeProcess, wait_until
 
-SEED = 3
+SEED = FAST_SIM_SEED  # the fast_sim fixture's
 LEAD = 3
 FEATURES = np.linspace(0.3, 0.9, 10)
 ZERO_GAINS = FeedbackConfig(p_gain_per_s=(0.0, 0.0), i_gain_per_s2=(0.0, 0.0), velocity_gain=(0.0, 0.0))
@@ -80,20 +89,6 @@ def assert_tracker_decided(trajectory: Trajectory, rec: Recording, correction: n
     np.testing.assert_array_equal(correction, tracker.correction_rad_s[: len(rec)])
 
 
-@pytest.fixture
-def fast_sim(tmp_path: Path) -> Iterator[NodeProcess]:
-    proc = start_sim(tmp_path, "time_mode:=fast", f"leg.seed:={SEED}")
-    yield proc
-    assert proc.stop() == 0, proc.log()
-
-
-@pytest.fixture
-def peer() -> Iterator[RigPeer]:
-    p = RigPeer(rig_client=True)
-    yield p
-    p.close()
-
-
 def test_map_weights_round_trip_bit_for_bit() -> None:
     net = small_map(seed=5)
     arrays = net.to_arrays()
@@ -142,7 +137,10 @@ def test_zero_gains_play_the_open_loop_sequence_tick_for_tick(tmp_path: Path) ->
         )
 
 
-def test_closed_loop_is_the_trackers_and_the_in_process_rigs(fast_sim: NodeProcess, peer: RigPeer) -> None:
+def test_closed_loop_is_the_trackers_and_the_in_process_rigs(
+    fast_sim: NodeProcess, client_peer: RigPeer
+) -> None:
+    peer = client_peer
     peer.wait_for_rig()
     assert peer.client is not None
     traj = trajectory(3, FEEDBACK)
@@ -257,7 +255,8 @@ INVALID_GOALS: list[tuple[str, Callable[[RunTrajectory.Goal], None], str]] = [
 ]
 
 
-def test_invalid_goals_are_rejected_and_the_log_says_why(fast_sim: NodeProcess, peer: RigPeer) -> None:
+def test_invalid_goals_are_rejected_and_the_log_says_why(fast_sim: NodeProcess, client_peer: RigPeer) -> None:
+    peer = client_peer
     peer.wait_for_rig()
     valid = trajectory(2, FEEDBACK)
     for what, change, reason in INVALID_GOALS:

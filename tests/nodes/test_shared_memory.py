@@ -16,7 +16,7 @@ def fastdds_files() -> set[str]:
     return {p.name for p in SHM.iterdir() if p.name.startswith(("fastdds_", "fastrtps_"))}
 
 
-def start_sim(log_dir: Path) -> tuple[NodeProcess, set[str]]:
+def start_sim_and_its_files(log_dir: Path) -> tuple[NodeProcess, set[str]]:
     """A simulator node, and the shared-memory segments that appeared with it (a participant's own; port
     files are shared by the participants that listen on the port)."""
     before = fastdds_files()
@@ -26,8 +26,8 @@ def start_sim(log_dir: Path) -> tuple[NodeProcess, set[str]]:
 
 
 def test_the_files_of_a_killed_node_are_removed_and_a_running_nodes_kept(tmp_path: Path) -> None:
-    killed, killed_files = start_sim(tmp_path)
-    running, running_files = start_sim(tmp_path)
+    killed, killed_files = start_sim_and_its_files(tmp_path)
+    running, running_files = start_sim_and_its_files(tmp_path)
     assert killed_files and running_files
     killed.stop(signal.SIGKILL)
     assert killed_files <= fastdds_files()  # nothing removes them: Fast DDS's own watchdog does not

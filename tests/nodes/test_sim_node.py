@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -33,25 +32,6 @@ def stamps_s(peer: RigPeer, topic: str) -> np.ndarray:
     """The header stamps (s) of every message received on a rig topic, in arrival order."""
     with peer.lock:
         return np.array([stamp_s(m) for m in peer.received[topic]])
-
-
-@pytest.fixture
-def log_dir(tmp_path: Path) -> Path:
-    return tmp_path
-
-
-@pytest.fixture
-def fast_sim(log_dir: Path) -> Iterator[NodeProcess]:
-    proc = start_sim(log_dir, "time_mode:=fast", "leg.seed:=3")
-    yield proc
-    assert proc.stop() == 0, proc.log()
-
-
-@pytest.fixture
-def peer() -> Iterator[RigPeer]:
-    p = RigPeer()
-    yield p
-    p.close()
 
 
 def test_run_activations_gives_feedback_and_the_samples_the_topics_carried(
@@ -95,10 +75,10 @@ def test_run_activations_gives_feedback_and_the_samples_the_topics_carried(
     np.testing.assert_array_equal(js.position, rec.position_rad[0])
 
 
-def test_fast_mode_publishes_clock_every_k_ticks_and_on_the_last_tick(log_dir: Path) -> None:
+def test_fast_mode_publishes_clock_every_k_ticks_and_on_the_last_tick(tmp_path: Path) -> None:
     # Paced at 5x so that the best-effort /clock reaches the peer whole.
     sim = start_sim(
-        log_dir, "time_mode:=fast", "rig.clock_period_ticks:=8", "rig.fast_max_real_time_factor:=5.0"
+        tmp_path, "time_mode:=fast", "rig.clock_period_ticks:=8", "rig.fast_max_real_time_factor:=5.0"
     )
     peer = RigPeer()
     clocks: list[int] = []  # ns
@@ -127,12 +107,12 @@ def test_fast_mode_publishes_clock_every_k_ticks_and_on_the_last_tick(log_dir: P
         assert sim.stop() == 0, sim.log()
 
 
-def test_fast_mode_is_deterministic_for_a_seed(log_dir: Path) -> None:
+def test_fast_mode_is_deterministic_for_a_seed(tmp_path: Path) -> None:
     rng = np.random.default_rng(7)
     activations = np.repeat(rng.uniform(0.15, 1.0, (20, 3)), 30, axis=0)
     results = []
     for _ in range(2):
-        proc = start_sim(log_dir, "time_mode:=fast", "leg.seed:=11")
+        proc = start_sim(tmp_path, "time_mode:=fast", "leg.seed:=11")
         peer = RigPeer()
         try:
             peer.wait_for_rig()
@@ -234,8 +214,8 @@ def test_reset_returns_to_rest(fast_sim: NodeProcess, peer: RigPeer) -> None:
 
 
 @pytest.mark.slow
-def test_realtime_mode_ticks_at_78_hz_and_the_watchdog_drops_to_baseline(log_dir: Path) -> None:
-    proc = start_sim(log_dir, "time_mode:=realtime")
+def test_realtime_mode_ticks_at_78_hz_and_the_watchdog_drops_to_baseline(tmp_path: Path) -> None:
+    proc = start_sim(tmp_path, "time_mode:=realtime")
     peer = RigPeer()
     try:
         peer.wait_for_rig()

@@ -6,7 +6,6 @@ import json
 import math
 import socket
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -43,13 +42,6 @@ def learner_event(kind: str, stamp_ns: int, **fields: object) -> LearnerEvent:
         setattr(msg, name, float(fields.pop(name, math.nan)))  # type: ignore[arg-type]
     msg.detail = json.dumps(fields.pop("detail", {}))
     return msg
-
-
-@pytest.fixture
-def peer() -> Iterator[RigPeer]:
-    p = RigPeer()
-    yield p
-    p.close()
 
 
 def test_the_live_viewer_shows_the_rigs_joint_states_on_its_own_leg(tmp_path: Path, peer: RigPeer) -> None:

@@ -10,8 +10,9 @@ import mujoco
 import numpy as np
 import pytest
 
+from g2p.babbling import babbling_activations
 from g2p.config import ConfigError
-from g2p.plant import NOMINAL_TICK_HZ, Plant, Recording, TickSample, run_sequence
+from g2p.plant import NOMINAL_TICK_HZ, Plant, Recording, TickSample, hold, run_sequence
 from g2p.safety import BASELINE_ACTIVATION
 from g2p.sim import (
     AIR_CARRIAGE_HEIGHT_M,
@@ -25,7 +26,6 @@ from g2p.sim import (
     packaged_model_path,
 )
 from g2p.sim.calibration import LegCalibration
-from tests.sim.helpers import babble, hold
 
 TICK = 1.0 / NOMINAL_TICK_HZ
 JITTER = MujocoLegConfig().tick_jitter_s
@@ -200,7 +200,7 @@ def test_babbling_holds_limits_and_tendons_only_pull(height: float) -> None:
     plant = MujocoLeg(MujocoLegConfig(carriage_height_m=height))
     plant.reset()
     min_tension = _check_limits_and_tension(
-        plant, babble(np.random.default_rng(3), 60 * 78), tol_rad=math.radians(3.0)
+        plant, babbling_activations(np.random.default_rng(3), n_samples=60 * 78), tol_rad=math.radians(3.0)
     )
     # Fast motions do slacken tendons, so the one-sided spring was exercised: slack reads 0, never < 0.
     assert min_tension == 0.0
@@ -279,7 +279,7 @@ def test_tick_periods_are_jittered_around_78_hz() -> None:
 
 def test_angles_are_encoder_counts_and_velocity_is_their_difference(air_plant: MujocoLeg) -> None:
     start = air_plant.reset()
-    rec = run_sequence(air_plant, babble(np.random.default_rng(1), 400))
+    rec = run_sequence(air_plant, babbling_activations(np.random.default_rng(1), n_samples=400))
     step = encoder_step_rad(14)
     counts = rec.position_rad / step
     np.testing.assert_allclose(counts, np.round(counts), rtol=0, atol=1e-6)
@@ -321,7 +321,7 @@ def test_current_follows_activation_with_the_motor_lag(air_plant: MujocoLeg) -> 
 def test_energy_integrates_power_and_exceeds_copper_loss_over_babbling(treadmill_plant: MujocoLeg) -> None:
     motor = treadmill_plant.leg_model.motor
     start = treadmill_plant.reset()
-    rec = run_sequence(treadmill_plant, babble(np.random.default_rng(5), 30 * 78))
+    rec = run_sequence(treadmill_plant, babbling_activations(np.random.default_rng(5), n_samples=30 * 78))
     dt = np.diff(np.r_[start.t_s, rec.t_s])
     np.testing.assert_allclose(
         np.diff(np.vstack([start.energy_j, rec.energy_j]), axis=0),
@@ -410,7 +410,7 @@ def test_reset_episode_starts_a_fresh_rig_and_perturbs_the_joints() -> None:
 
 
 def test_same_seed_same_commands_give_bit_identical_samples() -> None:
-    seq = babble(np.random.default_rng(11), 300)
+    seq = babbling_activations(np.random.default_rng(11), n_samples=300)
     a, b, c = (MujocoLeg(MujocoLegConfig(seed=seed)) for seed in (4, 4, 5))
     first = [run_sequence(p, seq) for p in (a, b, c)]
     assert recordings_equal(first[0], first[1])
