@@ -29,7 +29,7 @@ from std_msgs.msg import Header, String
 from g2p import run_events
 from g2p.attempt import AttemptOutcome
 from g2p.bags.runs import new_run_id
-from g2p.checkpoint import CheckpointError, capture, restore
+from g2p.checkpoint import capture
 from g2p.config import require, require_positive
 from g2p.experiments import (
     AttemptReport,
@@ -504,29 +504,12 @@ class LearnerNode(Node):
             ValueError: the bag holds no run to continue, or this node's learner and cycle settings are not
                 the recorded run's (the search's come from the bag).
         """
-        from g2p.bags.resume import resume_point  # only runs reading a bag need the bag library
+        from g2p.bags.resume import resume_run  # only runs reading a bag need the bag library
 
-        point = resume_point(bag, self.resolve_topic_name("~/config"))
         mine = json.loads(json.dumps(config_as_dict(self.config)))  # as recorded: JSON types
-        if point.node_config is not None:
-            differ = [k for k in ("learner", "cycle") if point.node_config.get(k) != mine[k]]
-            if differ:
-                raise ValueError(
-                    f"{bag}: the recorded run's {' and '.join(differ)} settings differ from this node's; "
-                    "start the learner with the run's parameters (see its ~/config in the bag)"
-                )
-        search = SearchConfig(**point.search)
-        try:
-            run = restore(
-                point.checkpoint,
-                point.babbling,
-                point.attempts,
-                self.config.learner,
-                search,
-                self.config.cycle,
-            )
-        except CheckpointError as err:
-            raise ValueError(f"{bag}: {err}") from err
+        point, run = resume_run(
+            bag, mine, self.config.learner, self.config.cycle, self.resolve_topic_name("~/config")
+        )
         self.learner = run.learner
         self.run_id = point.run_id
         self._event(

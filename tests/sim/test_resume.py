@@ -27,9 +27,11 @@ from g2p.sim import MujocoLeg, MujocoLegConfig
 
 CONFIG = LearnerConfig(seed=1, babbling_chunk_s=10.0, babbling=BabblingConfig(duration_s=20.0))
 CYCLE = LimitCycleConfig.treadmill(n_cycles=3)
-# With seed 1 one of the first three attempts crosses 12 mm (which one depends on the machine's floating
+# With seed 1 one of the first few attempts crosses 12 mm (which one depends on the machine's floating
 # point: torch picks its kernels by CPU), then 3 exploitation attempts.
 SEARCH = SearchConfig(threshold_mm=12.0, exploitation_attempts=3)
+# The most exploration attempts the tests wait for the threshold to be crossed.
+CROSSING_LIMIT = 20
 
 
 def babbled() -> tuple[TreadmillRun, PlantRig]:
@@ -156,12 +158,15 @@ def recordings(run: TreadmillRun) -> tuple[list[Recording], list[Recording]]:
     return list(run.learner.babbling_recordings), [r.outcome.recording for r in run.reports]
 
 
-@pytest.mark.parametrize("k", [0, 3])
-def test_a_restored_run_continues_exactly_as_the_uninterrupted_one(k: int) -> None:
+@pytest.mark.parametrize("checkpoint_phase", [Phase.EXPLORATION, Phase.EXPLOITATION])
+def test_a_restored_run_continues_exactly_as_the_uninterrupted_one(checkpoint_phase: Phase) -> None:
     run, rig = babbled()
     twin, twin_rig = babbled()
-    for _ in range(k):
+    k = 0  # attempts before the checkpoint: none, or up to the first in exploitation
+    while run.search.phase is not checkpoint_phase:
+        assert k < CROSSING_LIMIT, f"no attempt of {CROSSING_LIMIT} crossed {SEARCH.threshold_mm} mm"
         assert step(run, rig) == step(twin, twin_rig)
+        k += 1
     assert state(run) == state(twin)  # the premise: the twin is the same run
     text = capture(run).to_json()
     assert len(text) < 20_000
@@ -170,8 +175,7 @@ def test_a_restored_run_continues_exactly_as_the_uninterrupted_one(k: int) -> No
     assert state(restored) == state(run)
     assert capture(restored).to_json() == text
     # The restored run goes on on the original's plant; the twin never stopped.
-    phase = restored.search.phase
-    assert phase is (Phase.EXPLORATION if k == 0 else Phase.EXPLOITATION)  # a checkpoint in each phase
+    assert restored.search.phase is checkpoint_phase
     continued, uninterrupted = finish(restored, rig), finish(twin, twin_rig)
     assert continued, "the restored run had nothing left to do"
     assert [c[0] for c in continued] == list(range(k + 1, k + len(continued) + 1))
@@ -182,20 +186,23 @@ def test_a_restored_run_continues_exactly_as_the_uninterrupted_one(k: int) -> No
 
 def test_restore_names_the_recordings_or_search_that_do_not_match() -> None:
     run, rig = babbled()
-    for _ in range(3):
+    n = 0  # at least 3 attempts, the last in exploitation
+    while n < 3 or run.search.phase is not Phase.EXPLOITATION:
+        assert n < CROSSING_LIMIT, f"no attempt of {CROSSING_LIMIT} crossed {SEARCH.threshold_mm} mm"
         run.next_attempt(rig)
+        n += 1
     checkpoint = Checkpoint.from_json(capture(run).to_json(), "test")
     babbling, attempts = recordings(run)
-    with pytest.raises(CheckpointError, match=r"2 attempt recordings given, .* after 3 refinements"):
-        restore(checkpoint, babbling, attempts[:2], CONFIG, SEARCH, CYCLE)
+    with pytest.raises(CheckpointError, match=rf"{n - 1} attempt recordings given, .* after {n} refinements"):
+        restore(checkpoint, babbling, attempts[:-1], CONFIG, SEARCH, CYCLE)
     with pytest.raises(CheckpointError, match=r"1 babbling recordings given, .* has 2 babbling segments"):
         restore(checkpoint, babbling[:1], attempts, CONFIG, SEARCH, CYCLE)
     nudged = replace(attempts[1], position_rad=attempts[1].position_rad + 1e-12)  # as many samples
     with pytest.raises(
         CheckpointError, match=r"segment 3 \('attempt 2'\) differs from the checkpoint's \(digest"
     ):
-        restore(checkpoint, babbling, [attempts[0], nudged, attempts[2]], CONFIG, SEARCH, CYCLE)
-    shortened = [attempts[0], attempts[1].slice(0, 200), attempts[2]]
+        restore(checkpoint, babbling, [attempts[0], nudged, *attempts[2:]], CONFIG, SEARCH, CYCLE)
+    shortened = [attempts[0], attempts[1].slice(0, 200), *attempts[2:]]
     with pytest.raises(CheckpointError, match=r"segment 3 \('attempt 2'\) has \d+ samples .* has \d+"):
         restore(checkpoint, babbling, shortened, CONFIG, SEARCH, CYCLE)
     with pytest.raises(CheckpointError, match=r"phase exploration, the checkpoint's exploitation"):

@@ -19,10 +19,14 @@ from typing import Any
 from g2p.bags.dataset import RunData, load_run
 from g2p.bags.errors import BagError
 from g2p.bags.recover import bag_is_complete, recover_bag
-from g2p.checkpoint import Checkpoint, CheckpointError
+from g2p.checkpoint import Checkpoint, CheckpointError, restore
+from g2p.experiments import TreadmillRun
+from g2p.learner import LearnerConfig
+from g2p.limit_cycle import LimitCycleConfig
 from g2p.plant import Recording
 from g2p.rig import DEFAULT_NAMESPACE
 from g2p.run_events import CHECKPOINT, SEARCH, Event
+from g2p.search import SearchConfig
 
 TREADMILL_PHASES = ("exploration", "exploitation")
 
@@ -114,6 +118,45 @@ def resume_point(
         search=dict(start.detail[SEARCH]),
         node_config=config if isinstance(config, dict) else None,
     )
+
+
+def resume_run(
+    bag: Path | str,
+    node_config: dict[str, Any],
+    learner: LearnerConfig,
+    cycle: LimitCycleConfig,
+    config_topic: str = "/leg/learner/config",
+) -> tuple[ResumePoint, TreadmillRun]:
+    """The run recorded in `bag`, restored at its last checkpoint, to be continued with these settings.
+
+    Args:
+        bag: the run's bag directory.
+        node_config: the continuing learner's configuration as it records it (its `~/config`, JSON
+            types): its "learner" and "cycle" sections must be the recorded run's.
+        learner: the learner's settings.
+        cycle: the limit-cycle settings.
+        config_topic: the recorded learner's configuration topic.
+
+    Raises:
+        ResumeError: the bag holds no run to continue.
+        ValueError: the learner and cycle settings are not the recorded run's (the search's come from
+            the bag), or the checkpoint does not match the recorded data.
+    """
+    point = resume_point(bag, config_topic)
+    if point.node_config is not None:
+        differ = [k for k in ("learner", "cycle") if point.node_config.get(k) != node_config.get(k)]
+        if differ:
+            raise ValueError(
+                f"{bag}: the recorded run's {' and '.join(differ)} settings differ from this node's; "
+                "start the learner with the run's parameters (see its ~/config in the bag)"
+            )
+    try:
+        run = restore(
+            point.checkpoint, point.babbling, point.attempts, learner, SearchConfig(**point.search), cycle
+        )
+    except CheckpointError as err:
+        raise ValueError(f"{bag}: {err}") from err
+    return point, run
 
 
 def _babbling_starts(run: RunData) -> list[int]:
