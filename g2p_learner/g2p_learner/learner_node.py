@@ -14,20 +14,17 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from std_msgs.msg import Header, String
+from std_msgs.msg import String
 
 from g2p import run_events
-from g2p.attempt import AttemptOutcome
 from g2p.bags.runs import new_run_id
 from g2p.checkpoint import capture
 from g2p.config import require, require_positive
@@ -43,7 +40,7 @@ from g2p.experiments import (
 )
 from g2p.inverse_map import FitCancelled, FitReport
 from g2p.learner import Learner, LearnerConfig
-from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig, check_features, cycle_kinematics
+from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig
 from g2p.plant import Recording
 from g2p.rig import (
     DEFAULT_NAMESPACE,
@@ -57,18 +54,14 @@ from g2p.run_events import Event
 from g2p.search import SearchConfig
 from g2p.seeds import seed_streams
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
-from g2p_interfaces.msg import InverseMapWeights, LearnerEvent
+from g2p_learner import goals
+from g2p_learner.run_publisher import RunPublisher
 from g2p_ros.contract import (
-    EVENT_QOS,
-    LEARNER_EVENTS,
-    LEARNER_INVERSE_MAP,
-    MAP_QOS,
     RIG_SAMPLE_TOPICS,
     ServerWatch,
     action_name,
     wait_all,
 )
-from g2p_ros.convert import inverse_map_weights_msg
 from g2p_ros.params import CONFIG_QOS, config_as_dict, declare_config, publish_config
 from g2p_ros.rig_client import RigClient
 
@@ -146,10 +139,6 @@ class _Step:
     features: np.ndarray | None = None
 
 
-class GoalRejected(ValueError):
-    """A goal is invalid; the message says why."""
-
-
 class LearnerNode(Node):
     """Hosts the babble, attempt, learn and track actions; one goal at a time."""
 
@@ -183,8 +172,7 @@ class LearnerNode(Node):
         self._busy_lock = threading.Lock()
         self._cancel = threading.Event()
 
-        self._events = self.create_publisher(LearnerEvent, f"~/{LEARNER_EVENTS}", EVENT_QOS)
-        self._maps = self.create_publisher(InverseMapWeights, f"~/{LEARNER_INVERSE_MAP}", MAP_QOS)
+        self.record = RunPublisher(self, lambda: self.run_id)
         self._config_pub = publish_config(self, config_as_dict(self.config))
 
         group = ReentrantCallbackGroup()
@@ -199,10 +187,10 @@ class LearnerNode(Node):
                 callback_group=group,
             )
             for action, name, execute, validate in (
-                (Babble, "babble", self._execute_babble, self._validate_babble),
-                (Attempt, "attempt", self._execute_attempt, self._validate_attempt),
-                (Learn, "learn", self._execute_learn, self._validate_learn),
-                (Track, "track", self._execute_track, self._validate_track),
+                (Babble, "babble", self._execute_babble, goals.check_babble),
+                (Attempt, "attempt", self._execute_attempt, self._check_attempt),
+                (Learn, "learn", self._execute_learn, goals.check_learn),
+                (Track, "track", self._execute_track, self._check_track),
             )
         ]
 
@@ -226,8 +214,7 @@ class LearnerNode(Node):
 
     def flush_events(self, timeout_s: float) -> bool:
         """Wait until the recorder acknowledged every event and map (across a slow link); False on timeout."""
-        wait = Duration(seconds=timeout_s)
-        return all(p.wait_for_all_acked(wait) for p in (self._events, self._maps))
+        return self.record.flush(timeout_s)
 
     def _on_recorder_config(self, msg: String) -> None:
         try:
@@ -258,7 +245,11 @@ class LearnerNode(Node):
             self.get_logger().info(
                 f"rig back after {detail['downtime_s']:.1f} s; the lost sequence is played again from rest"
             )
-        self._event(Event(event), detail=detail)
+        self.record.event(Event(event), detail=detail)
+
+    @property
+    def _control(self) -> str:
+        return self.learner.config.control.value
 
     def _resume_hint(self) -> str:
         where = self.bag_path or "bags/<run>"
@@ -283,7 +274,7 @@ class LearnerNode(Node):
         def callback(goal: object) -> GoalResponse:
             try:
                 validate(goal)
-            except GoalRejected as err:
+            except goals.GoalRejected as err:
                 self.get_logger().warning(f"goal rejected: {err}")
                 return GoalResponse.REJECT
             with self._busy_lock:
@@ -295,33 +286,11 @@ class LearnerNode(Node):
 
         return callback
 
-    def _validate_babble(self, goal: Babble.Goal) -> None:
-        _require_goal(
-            math.isfinite(goal.duration_s) and goal.duration_s >= 0,
-            f"duration_s must be finite and >= 0, got {goal.duration_s}",
-        )
+    def _check_attempt(self, goal: Attempt.Goal) -> None:
+        goals.check_attempt(goal, self.config.cycle, self.learner)
 
-    def _validate_attempt(self, goal: Attempt.Goal) -> None:
-        _check_goal_features(goal.features, self.config.cycle)
-        _require_goal(self.learner.inverse_map.is_fitted, "no inverse map yet: babble first")
-
-    def _validate_learn(self, goal: Learn.Goal) -> None:
-        for name in ("babbling_duration_s", "threshold_mm"):
-            value = getattr(goal, name)
-            _require_goal(math.isfinite(value) and value >= 0, f"{name} must be finite and >= 0, got {value}")
-        for name in ("dataset_bag", "resume_bag"):
-            bag = getattr(goal, name)
-            _require_goal(not bag or Path(bag).is_dir(), f"{name} {bag!r} is not a directory")
-        _require_goal(not (goal.dataset_bag and goal.resume_bag), "give dataset_bag or resume_bag, not both")
-
-    def _validate_track(self, goal: Track.Goal) -> None:
-        _require_goal(
-            goal.mode in (Track.Goal.MODE_REFINE_ONE, Track.Goal.MODE_GENERALIZATION),
-            f"mode must be {Track.Goal.MODE_REFINE_ONE} or {Track.Goal.MODE_GENERALIZATION}, got {goal.mode}",
-        )
-        if len(goal.features):
-            _check_goal_features(goal.features, self.config.air_cycle)
-        _require_goal(self.learner.inverse_map.is_fitted, "no inverse map yet: babble first")
+    def _check_track(self, goal: Track.Goal) -> None:
+        goals.check_track(goal, self.config.air_cycle, self.learner)
 
     def _on_cancel(self, goal_handle: ServerGoalHandle) -> CancelResponse:
         self._cancel.set()  # the rig drops to baseline within one tick; the goal ends between steps
@@ -344,20 +313,20 @@ class LearnerNode(Node):
                 self._adopt_recorder_run()
                 return execute(goal_handle)
             except (RigCancelled, FitCancelled) as err:
-                self._event(Event.RUN_END, detail={run_events.CANCELLED: str(err)})
+                self.record.event(Event.RUN_END, detail={run_events.CANCELLED: str(err)})
                 goal_handle.canceled()
                 return action.Result(message=f"cancelled: {err}")
             except RigUnreachable as err:
                 message = f"{err}; {self._resume_hint()}" if action is Learn else str(err)
                 self.get_logger().error(f"{action.__name__} goal aborted: {message}")
-                self._event(
+                self.record.event(
                     Event.RUN_END, detail={run_events.ERROR: str(err), run_events.RESUME: self.bag_path}
                 )
                 goal_handle.abort()
                 return action.Result(message=message)
             except (RigError, ValueError) as err:
                 self.get_logger().error(f"{action.__name__} goal aborted: {err}")
-                self._event(Event.RUN_END, detail={run_events.ERROR: str(err)})
+                self.record.event(Event.RUN_END, detail={run_events.ERROR: str(err)})
                 goal_handle.abort()
                 return action.Result(message=str(err))
             finally:
@@ -380,7 +349,7 @@ class LearnerNode(Node):
 
     def _babble(self, duration_s: float | None, progress: Callable[[int, int], None]) -> FitReport:
         fit = self.learner.babble(_BabblingSegments(self), duration_s, progress, self._cancel)
-        self._publish_map(fit)
+        self.record.inverse_map(self.learner, fit)
         return fit
 
     def _execute_attempt(self, goal_handle: ServerGoalHandle) -> Attempt.Result:
@@ -388,7 +357,7 @@ class LearnerNode(Node):
         cycle = replace(self.config.cycle, n_cycles=goal.cycles) if goal.cycles else self.config.cycle
         features = np.asarray(goal.features)
         number = self.learner.refinements + 1
-        self._attempt_start("attempt", number, features, cycle)
+        self.record.attempt_start("attempt", number, features, cycle, self._control)
 
         def progress(done: int, total: int) -> None:
             goal_handle.publish_feedback(
@@ -397,9 +366,9 @@ class LearnerNode(Node):
 
         refine = not goal.skip_refinement
         outcome, fit = self.learner.attempt(self.rig, features, cycle, refine, progress, self._cancel)
-        self._attempt_end("attempt", number, outcome)
+        self.record.attempt_end("attempt", number, outcome)
         if fit is not None:
-            self._publish_map(fit)
+            self.record.inverse_map(self.learner, fit)
         goal_handle.succeed()
         return Attempt.Result(
             reward_mm=outcome.reward_mm,
@@ -418,7 +387,7 @@ class LearnerNode(Node):
         self._checkpoint(run)
 
         def attempt_done(report: AttemptReport) -> None:
-            self._attempt_end(
+            self.record.attempt_end(
                 report.phase.value,
                 report.number,
                 report.outcome,
@@ -451,7 +420,7 @@ class LearnerNode(Node):
             "exploration_attempts": result.exploration_attempts,
             "exploitation_attempts": result.exploitation_attempts,
         }
-        self._event(Event.RUN_END, detail=summary)
+        self.record.event(Event.RUN_END, detail=summary)
         goal_handle.succeed()
         return Learn.Result(
             best_features=result.best_features,
@@ -473,7 +442,7 @@ class LearnerNode(Node):
             max_exploration_attempts=goal.max_exploration_attempts or search.max_exploration_attempts,
             exploitation_attempts=goal.exploitation_attempts or search.exploitation_attempts,
         )
-        self._event(
+        self.record.event(
             Event.RUN_START,
             detail={
                 "goal": {"dataset_bag": goal.dataset_bag, "babbling_duration_s": goal.babbling_duration_s},
@@ -512,14 +481,14 @@ class LearnerNode(Node):
         )
         self.learner = run.learner
         self.run_id = point.run_id
-        self._event(
+        self.record.event(
             Event.RUN_START,
             detail={
                 run_events.SEARCH: point.search,
                 "resumed_from": {"bag": str(point.bag), "attempt": point.checkpoint.attempt},
             },
         )
-        self._publish_map(None)
+        self.record.inverse_map(self.learner, None)
         self.get_logger().info(
             f"run {self.run_id} resumed from {bag} after attempt {point.checkpoint.attempt} "
             f"({run.search.phase.value}, best {run.search.best_reward_mm:.1f} mm)"
@@ -529,7 +498,7 @@ class LearnerNode(Node):
     def _checkpoint(self, run: TreadmillRun) -> None:
         """Record the run's state (g2p.checkpoint): `learn --resume` continues from the last one."""
         checkpoint = capture(run)
-        self._event(
+        self.record.event(
             Event.CHECKPOINT,
             attempt=checkpoint.attempt,
             detail={run_events.CHECKPOINT: json.loads(checkpoint.to_json())},
@@ -540,11 +509,11 @@ class LearnerNode(Node):
 
         data = load_training_data(bag)
         fit = self.learner.fit_babbling(list(data.babbling))
-        self._publish_map(fit)
+        self.record.inverse_map(self.learner, fit)
         for k, recording in enumerate(data.attempts, start=1):
             fit = self.learner.refine_with(recording, f"attempt {k} from {bag}")
-            self._publish_map(fit)
-        self._event(
+            self.record.inverse_map(self.learner, fit)
+        self.record.event(
             Event.PHASE_END,
             phase="babbling",
             detail={"dataset_bag": bag, "samples": len(self.learner.dataset)},
@@ -574,7 +543,7 @@ class LearnerNode(Node):
 
         def step_done(report: TrackingReport) -> None:
             if report.outcome is not None:
-                self._attempt_end("tracking", report.number, report.outcome)
+                self.record.attempt_end("tracking", report.number, report.outcome)
             goal_handle.publish_feedback(
                 Track.Feedback(
                     stage=report.stage, index=report.number, tracking_mse_deg2=report.tracking.mse_deg2
@@ -607,89 +576,13 @@ class LearnerNode(Node):
             self._check_cancel(goal_handle)
             step = upcoming()
             if step is not None:
-                self._attempt_start(step.phase, step.number, step.features, experiment.cycle)
+                self.record.attempt_start(
+                    step.phase, step.number, step.features, experiment.cycle, self._control
+                )
             report = experiment.next_attempt(self.rig, cancel=self._cancel)
             done(report)
             if report.fit is not None:
-                self._publish_map(report.fit)
-
-    # Publishing ----------------------------------------------------------------------------------------
-
-    def _event(
-        self,
-        event: Event,
-        phase: str = "",
-        attempt: int = 0,
-        features: np.ndarray | None = None,
-        detail: dict[str, object] | None = None,
-        **values: float,
-    ) -> None:
-        msg = LearnerEvent(
-            header=Header(stamp=self.get_clock().now().to_msg()),
-            run_id=self.run_id,
-            event=event.value,
-            phase=phase,
-            attempt=attempt,
-            features=np.asarray(features if features is not None else [], dtype=np.float64),
-            reward_mm=math.nan,
-            energy_j=math.nan,
-            tracking_mse_deg2=math.nan,
-            tracking_rmse_rad=math.nan,
-            best_reward_mm=math.nan,
-            sigma=math.nan,
-            detail=json.dumps(detail or {}),
-        )
-        for name, value in values.items():
-            setattr(msg, name, float(value))
-        self._events.publish(msg)
-
-    def _segment_event(self, event: Event, recording: Recording | None = None) -> None:
-        """A babbling segment's start, or its end with where its ticks are (for reading the bag back)."""
-        self._event(
-            event,
-            phase="babbling",
-            detail=run_events.segment_detail(recording) if recording is not None else {},
-        )
-
-    def _attempt_start(
-        self, phase: str, number: int, features: np.ndarray | None, cycle: LimitCycleConfig
-    ) -> None:
-        """An attempt's start, with one cycle of its desired angles (N x 2, rad) for live viewers."""
-        desired = cycle_kinematics(features, cycle)[:, :2].tolist() if features is not None else None
-        detail = run_events.attempt_start_detail(self.learner.config.control.value, desired)
-        self._event(Event.ATTEMPT_START, phase=phase, attempt=number, features=features, detail=detail)
-
-    def _attempt_end(
-        self,
-        phase: str,
-        number: int,
-        outcome: AttemptOutcome,
-        sigma: float | None = None,
-        best: float = math.nan,
-    ) -> None:
-        self._event(
-            Event.ATTEMPT_END,
-            phase=phase,
-            attempt=number,
-            features=outcome.features,
-            detail=run_events.attempt_end_detail(outcome),
-            reward_mm=outcome.reward_mm,
-            energy_j=outcome.energy_j,
-            tracking_mse_deg2=outcome.tracking.mse_deg2,
-            tracking_rmse_rad=outcome.tracking.rmse_rad,
-            sigma=math.nan if sigma is None else sigma,
-            best_reward_mm=best,
-        )
-
-    def _publish_map(self, fit: FitReport | None) -> None:
-        """Publish the current map; `fit` is the fit or refinement that made it (None: restored)."""
-        msg = inverse_map_weights_msg(self.learner.inverse_map)
-        msg.header = Header(stamp=self.get_clock().now().to_msg())
-        msg.run_id = self.run_id
-        msg.refinement = self.learner.refinements
-        msg.training_samples = len(self.learner.dataset) if fit is None else fit.n_train + fit.n_validation
-        msg.validation_rmse = math.nan if fit is None else fit.validation_rmse
-        self._maps.publish(msg)
+                self.record.inverse_map(self.learner, report.fit)
 
 
 class _BabblingSegments:
@@ -711,19 +604,7 @@ class _BabblingSegments:
         progress: ProgressCallback | None = None,
         cancel: threading.Event | None = None,
     ) -> Recording:
-        self._node._segment_event(Event.PHASE_START)
+        self._node.record.segment(Event.PHASE_START)
         recording = self._node.rig.play(activations, progress, cancel)
-        self._node._segment_event(Event.PHASE_END, recording)
+        self._node.record.segment(Event.PHASE_END, recording)
         return recording
-
-
-def _require_goal(condition: bool, reason: str) -> None:
-    if not condition:
-        raise GoalRejected(reason)
-
-
-def _check_goal_features(features: object, cycle: LimitCycleConfig) -> None:
-    try:
-        check_features(np.asarray(features, dtype=np.float64), cycle)
-    except ValueError as err:
-        raise GoalRejected(str(err)) from err
