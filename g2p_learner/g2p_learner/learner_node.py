@@ -22,7 +22,6 @@ from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from std_msgs.msg import String
 
 from g2p import run_events
 from g2p.bags.runs import new_run_id
@@ -55,14 +54,13 @@ from g2p.search import SearchConfig
 from g2p.seeds import seed_streams
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_learner import goals
+from g2p_learner.recorder_link import RecorderLink
 from g2p_learner.run_publisher import RunPublisher
 from g2p_ros.contract import (
-    RIG_SAMPLE_TOPICS,
-    ServerWatch,
     action_name,
     wait_all,
 )
-from g2p_ros.params import CONFIG_QOS, config_as_dict, declare_config, publish_config
+from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_client import RigClient
 
 
@@ -158,13 +156,9 @@ class LearnerNode(Node):
         self.client = RigClient(self, cfg.rig_timeout_s, cfg.rig_silence_s, reset_timeout_s)
         self.rig = RetryingRig(self.client, cfg.rig_lost_limit_s, on_event=self._rig_event)
         self.watches = list(self.client.watches)
-        self._recorder_config: dict[str, Any] | None = None
-        if cfg.recorder_node:
-            name = f"{self.get_namespace().rstrip('/')}/{cfg.recorder_node}"
-            self.watches.append(ServerWatch(f"recorder {name}", self._recorder_ready, settle_s=0.0))
-            self._recorder_sub = self.create_subscription(
-                String, f"{cfg.recorder_node}/config", self._on_recorder_config, CONFIG_QOS
-            )
+        self.recorder = RecorderLink(self, cfg.recorder_node) if cfg.recorder_node else None
+        if self.recorder is not None:
+            self.watches.append(self.recorder.watch)
         self.learner = Learner(cfg.learner)
         self.run_id = cfg.run_id or new_run_id(datetime.now(timezone.utc), np.random.default_rng())
         self.bag_path = cfg.bag_path
@@ -216,23 +210,14 @@ class LearnerNode(Node):
         """Wait until the recorder acknowledged every event and map (across a slow link); False on timeout."""
         return self.record.flush(timeout_s)
 
-    def _on_recorder_config(self, msg: String) -> None:
-        try:
-            self._recorder_config = json.loads(msg.data)
-        except json.JSONDecodeError:
-            self.get_logger().warning(f"unreadable recorder configuration: {msg.data[:200]!r}")
-
-    def _recorder_ready(self) -> bool:
-        """Whether the recorder announced its run and subscribes to every rig sample topic."""
-        return self._recorder_config is not None and self._recorder_listening()
-
     def _adopt_recorder_run(self) -> None:
         """With no run id of its own, the learner's runs are the recorder's: its id and its bag."""
-        rec = self._recorder_config
-        if rec is None or self.config.run_id:
+        recorded = self.recorder.run() if self.recorder is not None else None
+        if recorded is None or self.config.run_id:
             return
-        self.run_id = str(rec.get("run_id", self.run_id))
-        self.bag_path = self.config.bag_path or str(rec.get("bag", ""))
+        run_id, bag = recorded
+        self.run_id = run_id or self.run_id
+        self.bag_path = self.config.bag_path or bag
 
     def _rig_event(self, event: str, detail: dict[str, Any]) -> None:
         """The rig was lost or came back (RetryingRig): log it and record it."""
@@ -256,16 +241,6 @@ class LearnerNode(Node):
         return (
             f"everything up to the last completed attempt is recorded; continue the run with: "
             f"ros2 run g2p_learner learn --resume {where}"
-        )
-
-    def _recorder_listening(self) -> bool:
-        """Whether the recorder subscribes to every rig sample topic (as this node's remappings name them)."""
-        return all(
-            any(
-                s.node_name == self.config.recorder_node and s.node_namespace == self.get_namespace()
-                for s in self.get_subscriptions_info_by_topic(topic)
-            )
-            for topic in RIG_SAMPLE_TOPICS
         )
 
     # Goal validation ---------------------------------------------------------------------------------
