@@ -56,10 +56,7 @@ from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_learner import goals
 from g2p_learner.recorder_link import RecorderLink
 from g2p_learner.run_publisher import RunPublisher
-from g2p_ros.contract import (
-    action_name,
-    wait_all,
-)
+from g2p_ros.contract import action_name, wait_all
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.rig_client import RigClient
 

@@ -155,7 +155,8 @@ class PlantRig:
             RigError: the job failed (a plant fault, no valid activation in closed loop).
         """
         n = job.ticks_total
-        assert self._loop.reserve(), "one caller, one call at a time: never refused"
+        reserved = self._loop.reserve()
+        assert reserved, "one caller, one call at a time: never refused"
         self._loop.play(job)
         try:
             while not job.done.is_set():
