@@ -316,7 +316,10 @@ class TickLoop:
             while self._running and self.pacing is Pacing.ON_DEMAND and not self._has_work():
                 self._burst = None
                 if not self._cv.wait(IDLE_HEARTBEAT_PERIOD_S):
-                    self._emit(Tick(None, self.counters.ticks, True))
+                    try:
+                        self._emit(Tick(None, self.counters.ticks, True))
+                    except Exception as err:  # the delivery failed: a fault; the loop goes on
+                        self._fault(err, None)
             if not self._running:
                 return False
             reset, self._reset = self._reset, None

@@ -224,3 +224,30 @@ def test_a_job_given_to_a_stopped_loop_ends_at_once() -> None:
     job = Job(activations=np.full((2, 3), 0.5))
     loop.play(job)
     assert job.done.is_set() and job.error == "rig is not running"
+
+
+def test_a_failed_heartbeat_is_a_fault_and_the_idle_loop_goes_on() -> None:
+    plant = LedgerPlant()
+    faults: list[Exception] = []
+
+    def receiver(tick: Tick) -> None:
+        if tick.sample is None:
+            raise RuntimeError("publisher gone")
+        if tick.then is not None:
+            tick.then()
+
+    loop = TickLoop(plant, Pacing.ON_DEMAND, TickLoopConfig(), receiver, faults.append)
+    loop.start()
+    try:
+        deadline = time.monotonic() + 30.0
+        while not faults:  # an idle loop emits a heartbeat every IDLE_HEARTBEAT_PERIOD_S
+            assert time.monotonic() < deadline, "no heartbeat"
+            time.sleep(0.01)
+        assert loop.command([0.5, 0.5, 0.5]) is CommandOutcome.APPLIED
+        while not plant.applied:
+            assert time.monotonic() < deadline, "the loop stopped ticking"
+            time.sleep(0.01)
+    finally:
+        loop.stop()
+    assert str(faults[0]) == "publisher gone"
+    np.testing.assert_array_equal(plant.applied[0], [0.5, 0.5, 0.5])
