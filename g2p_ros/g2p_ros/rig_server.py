@@ -25,7 +25,7 @@ from g2p.closed_loop import TrajectoryTracker
 from g2p.config import require
 from g2p.plant import N_JOINTS, NOMINAL_TICK_HZ, Plant, Recording, TickSample
 from g2p.safety import InvalidActivation, check_activation_sequence
-from g2p.tick_loop import CommandOutcome, Job, Pacing, TickLoop, TickLoopConfig
+from g2p.tick_loop import STOPPED, CommandOutcome, Job, Pacing, TickLoop, TickLoopConfig
 from g2p_interfaces.action import RunActivations, RunTrajectory
 from g2p_interfaces.msg import MotorActivation
 from g2p_ros import contract
@@ -292,7 +292,7 @@ class RigServer:
         if job.cancel and goal_handle.is_cancel_requested:
             goal_handle.canceled()
         elif job.error or job.cancel:
-            if job.error:
+            if job.error and job.error != STOPPED:  # a stop is logged once, by stop()
                 self._log.error(f"goal aborted: {job.error}")
             goal_handle.abort()
         else:

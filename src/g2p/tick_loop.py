@@ -37,6 +37,8 @@ FloatArray = NDArray[np.float64]
 # An idle loop with on-demand pacing emits a heartbeat this often (wall s): a ROS rig repeats its /clock,
 # so that a node started while it idles gets the time before the next sequence.
 IDLE_HEARTBEAT_PERIOD_S = 1.0
+# The error of a job (and the message of a reset) that the loop's stop ended.
+STOPPED = "rig stopped"
 
 
 class Pacing(enum.Enum):
@@ -230,10 +232,10 @@ class TickLoop:
         with self._cv:
             was_running, self._running = self._running, False
             if self._job is not None:
-                self._job.error = "rig stopped"
+                self._job.error = STOPPED
                 self._finish(self._job)
             if self._reset is not None:  # asked for, never started: its caller must not wait on
-                self._reset.message = "rig stopped"
+                self._reset.message = STOPPED
                 self._reset.done.set()
                 self._reset = None
             self._cv.notify_all()
