@@ -8,12 +8,14 @@ and serves them to Foxglove clients (g2p.viewer): by default on ws://127.0.0.1:8
     ros2 run g2p_viewer view --ros-args -p host:=0.0.0.0       # reachable from other machines
     ros2 run g2p_viewer view bags/<run> --rate 2               # replay a bag at twice the rig's pace
 
-A replay needs no ROS graph: it reads the bag, waits for a Foxglove client, plays the run once and exits.
+A replay needs no ROS graph: it reads the bag, waits for a Foxglove client, plays the run once and exits
+when the client disconnects (or on Ctrl-C): stopping the server sooner would drop what it has not sent.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import threading
 from pathlib import Path
@@ -33,7 +35,7 @@ from g2p.bags.reader import BagReader
 from g2p.config import ConfigError
 from g2p.rig import DEFAULT_NAMESPACE
 from g2p.urdf import packaged_leg_description, parse_leg_urdf
-from g2p.viewer.replay import replay_bag
+from g2p.viewer.replay import replay_bag, replay_message_bound
 from g2p.viewer.server import LegViewer, ViewerConfig
 from g2p_interfaces.msg import LearnerEvent, Treadmill
 from g2p_ros import contract
@@ -91,12 +93,15 @@ class ViewerNode(Node):
 def _replay(bag: Path, rate: float, config: ViewerConfig, stop: threading.Event) -> int:
     with BagReader(bag):  # an unreadable bag is an error now, not once a client has connected
         pass
+    # A recorded run is shown whole: the client's backlog holds all of it, however slow the client.
+    config = dataclasses.replace(config, message_backlog=replay_message_bound(bag))
     with LegViewer(packaged_leg_description(), config) as viewer:
         print(f"view: {bag} on {viewer.url}; waiting for a Foxglove client", flush=True)
         if not viewer.wait_for_client(stop=stop):
             return 0  # stopped before a client came: a clean stop
         shown = replay_bag(bag, viewer, rate, stop=stop)
-        print(f"view: replayed {shown} ticks", flush=True)
+        print(f"view: replayed {shown} ticks; serving them until the client disconnects", flush=True)
+        viewer.wait_for_clients_to_leave(stop=stop)
     return 0
 
 

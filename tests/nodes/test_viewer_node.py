@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import signal
 import socket
 import time
 from pathlib import Path
@@ -108,10 +110,17 @@ def test_the_live_viewer_shows_the_rigs_joint_states_on_its_own_leg(tmp_path: Pa
 def test_view_replays_a_bag_to_a_client_and_exits(tmp_path: Path) -> None:
     port = free_port()
     replay = NodeProcess("g2p_viewer", "view", [str(SAMPLE), "--rate", "200", "--port", str(port)], tmp_path)
-    # The replay waits for a client: the one that connects now sees the whole run, its 6 attempts too.
-    received = FoxgloveClient(f"ws://127.0.0.1:{port}", 90, {"/view/attempts": 6}).result()
+    # The replay waits for a client: the one that connects now sees the whole run, its 6 attempts too,
+    # though it reads nothing while the replay plays (0.6 s at rate 200) and for a while after: the server
+    # keeps what it could not yet send, and serves it until the client leaves.
+    client = FoxgloveClient(f"ws://127.0.0.1:{port}", 90, {"/view/attempts": 6})
+    client.first_message("/view/joints", 60)
+    os.kill(client.popen.pid, signal.SIGSTOP)
+    time.sleep(3.0)
+    os.kill(client.popen.pid, signal.SIGCONT)
+    received = client.result()
     assert received.returncode == 0, received.stderr + replay.log()
-    replay.popen.wait(60)
+    replay.popen.wait(60)  # the client has left
     assert replay.stop() == 0, replay.log()
     assert "replayed 9487 ticks" in replay.log()
     rewards = [m["reward_mm"] for _, m in received.messages["/view/attempts"]]

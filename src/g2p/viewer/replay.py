@@ -25,6 +25,7 @@ import numpy as np
 from g2p.bags.dataset import ROBOT_DESCRIPTION, ROBOT_DESCRIPTION_TYPE
 from g2p.bags.errors import BagReadError
 from g2p.bags.events import LEARNER_EVENT_TYPE, RunEvent, run_event
+from g2p.bags.metadata import read_metadata
 from g2p.bags.reader import BagReader
 from g2p.bags.ticks import header_stamp_ns, rig_topic_names
 from g2p.rig import DEFAULT_NAMESPACE
@@ -57,6 +58,20 @@ class _AttemptEnds:
         if FIRST_TICK_STAMP_NS in known:
             detail[FIRST_TICK_STAMP_NS] = known[FIRST_TICK_STAMP_NS]
         return dataclasses.replace(start, detail=detail)
+
+
+def replay_message_bound(bag: Path | str, rig_namespace: str = DEFAULT_NAMESPACE) -> int:
+    """Most messages `replay_bag` logs for `bag` (a viewer whose client backlog holds them drops none).
+
+    A joint frame and a scene per joint state, an attempt and a scene per learner event.
+
+    Raises:
+        BagReadError: the bag's metadata cannot be read.
+    """
+    topics = read_metadata(Path(bag)).topics.values()
+    joint_states = f"{rig_namespace.rstrip('/')}/joint_states"
+    shown = (t.message_count for t in topics if t.name == joint_states or t.msgtype == LEARNER_EVENT_TYPE)
+    return 2 * sum(shown)
 
 
 def replay_bag(

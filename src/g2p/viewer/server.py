@@ -36,11 +36,14 @@ class ViewerConfig:
             another machine only when asked (e.g. "0.0.0.0", or the lab network's address).
         port: TCP port (0: any free one).
         scene_rate_hz: most 3D scene updates per second of wall time (the joint plot gets every tick).
+        message_backlog: outgoing messages queued per client. When a slow client lets the queue fill,
+            foxglove-sdk drops its oldest message; a replay sizes it to hold the whole run.
     """
 
     host: str = "127.0.0.1"
     port: int = 8765
     scene_rate_hz: float = 30.0
+    message_backlog: int = 1024
 
     def __post_init__(self) -> None:
         require(bool(self.host.strip()), "host", "must name an address, e.g. 127.0.0.1")
@@ -50,19 +53,44 @@ class ViewerConfig:
             f"must be an integer in [0, 65535], got {self.port!r}",
         )
         require_positive(self.scene_rate_hz, "scene_rate_hz")
+        require(
+            isinstance(self.message_backlog, int) and self.message_backlog > 0,
+            "message_backlog",
+            f"must be a positive integer, got {self.message_backlog!r}",
+        )
 
 
 class _Subscriptions(ServerListener):
-    """Counts the channels clients have subscribed to (the other callbacks keep their no-op defaults)."""
+    """The clients' subscriptions, (client id, channel id) (the other callbacks keep their no-op defaults).
+
+    foxglove-sdk reports a client's disconnection as the end of each of its subscriptions.
+    """
 
     def __init__(self) -> None:
-        self.channels: set[int] = set()
+        self.current: set[tuple[int, int]] = set()
         self.changed = threading.Condition()
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
         with self.changed:
-            self.channels.add(channel.id)
+            self.current.add((client.id, channel.id))
             self.changed.notify_all()
+
+    def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
+        with self.changed:
+            self.current.discard((client.id, channel.id))
+            self.changed.notify_all()
+
+    def wait(self, done: Callable[[], bool], stop: threading.Event | None, timeout_s: float | None) -> bool:
+        """Wait until `done()` (False when `stop` was set or the timeout passed first)."""
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        with self.changed:
+            while not done():
+                if (stop is not None and stop.is_set()) or (
+                    deadline is not None and time.monotonic() > deadline
+                ):
+                    return False
+                self.changed.wait(0.1)
+        return True
 
 
 class LegViewer:
@@ -103,6 +131,7 @@ class LegViewer:
             port=self.config.port,
             context=self.context,
             server_listener=self._subscriptions,
+            message_backlog_size=self.config.message_backlog,
         )
 
     @property
@@ -123,15 +152,23 @@ class LegViewer:
         Returns:
             Whether they have (False when `stop` was set or the timeout passed first).
         """
-        deadline = None if timeout_s is None else time.monotonic() + timeout_s
-        with self._subscriptions.changed:
-            while len(self._subscriptions.channels) < channels:
-                if (stop is not None and stop.is_set()) or (
-                    deadline is not None and time.monotonic() > deadline
-                ):
-                    return False
-                self._subscriptions.changed.wait(0.1)
-        return True
+        subscribed = self._subscriptions.current
+        return self._subscriptions.wait(
+            lambda: len({channel for _, channel in subscribed}) >= channels, stop, timeout_s
+        )
+
+    def wait_for_clients_to_leave(
+        self, stop: threading.Event | None = None, timeout_s: float | None = None
+    ) -> bool:
+        """Wait until no client is subscribed to any channel (each has disconnected or unsubscribed).
+
+        `close` drops what the server has not yet sent (foxglove-sdk's stop ends each client's send
+        loop), so a server that must deliver everything it logged waits for this first.
+
+        Returns:
+            Whether they have (False when `stop` was set or the timeout passed first).
+        """
+        return self._subscriptions.wait(lambda: not self._subscriptions.current, stop, timeout_s)
 
     def set_description(self, description: LegDescription) -> None:
         """Draw the rig's own leg from now on (its robot_description)."""
@@ -163,7 +200,7 @@ class LegViewer:
             self.channels.log_scene(frame, self.state.description)
 
     def close(self) -> None:
-        """Stop the server (clients are disconnected)."""
+        """Stop the server: clients are disconnected, and what was not yet sent to them is dropped."""
         self.server.stop()
 
     def __enter__(self) -> LegViewer:
