@@ -35,6 +35,11 @@ RUN = {
     "search.threshold_mm": "10.0",
     "search.exploitation_attempts": "6",
 }
+# Runs compared bit for bit with each other. A machine loaded enough to hold the rig's feedback back for
+# the learner's default rig_silence_s (2 s) makes the learner abandon the sequence and play it again; the
+# rig then plays more ticks, its tick-timing noise moves on, and from there the runs part. No link of
+# these runs falls silent for 10 s.
+COMPARED_RUN = {**RUN, "rig_silence_s": "10.0"}
 # A rig paced by the wall clock, like the hardware: babbling and attempts take their rig time. Any
 # reward crosses: 1 exploration and 2 exploitation attempts.
 REALTIME_RUN = {
@@ -68,6 +73,11 @@ def first_retry(run: RunData) -> int:
     return sum(1 for e in ends if not lost or e.log_time_ns < lost[0])
 
 
+def lost_rig(run: RunData) -> list[dict[str, object]]:
+    """Why the learner abandoned sequences (its rig_lost events' details)."""
+    return [e.detail for e in events(run, "rig_lost")]
+
+
 def published_ticks(rig_log: str) -> int:
     """The rig's own count of the ticks it published (its last log line)."""
     lines = [line for line in rig_log.splitlines() if "stopped after publishing" in line]
@@ -86,7 +96,7 @@ def one_host_run(tmp_path: Path, run_id: str) -> RunData:
             "--run-id",
             run_id,
             "--no-report",
-            *set_args(RUN, "learner"),
+            *set_args(COMPARED_RUN, "learner"),
         ],
         capture_output=True,
         text=True,
@@ -130,18 +140,16 @@ def test_a_seeded_run_over_an_impaired_link_equals_the_run_over_loopback(
     # Two hosts: 20 ms +- 10 ms one way and 2 % loss, both ways.
     two_host_bench.impair(delay_ms=20.0, jitter_ms=10.0, loss=0.02)
     g = graph(two_host_bench, tmp_path)
-    rig_side, workstation = learn_two_hosts(g, "sim", RUN)
+    rig_side, workstation = learn_two_hosts(g, "sim", COMPARED_RUN)
     assert workstation.wait(600) == 0, workstation.log()
     assert rig_side.stop() == 0, rig_side.log()
 
     there = load_run(g.bag)
     ends = sorted(set(attempt_ends(there)))
     assert ends == list(range(1, len(ends) + 1)) and len(ends) > 6  # exploration, then 6 exploitation
-    # Bit for bit: the rig owns the timing. Up to a sequence played again, if any (a goal whose answer
-    # was lost, on a loaded machine even over loopback): the rig then played more ticks, its tick-timing
-    # noise moved on, and from there the two runs part.
+    # Bit for bit: the rig owns the timing. Up to a sequence played again, if any (COMPARED_RUN).
     same = min([first_retry(here), first_retry(there)])
-    assert same > 5, "retried sequences in the first attempts"
+    assert same > 5, f"retried sequences: loopback {lost_rig(here)}, two hosts {lost_rig(there)}"
     assert rewards(there)[:same] == rewards(here)[:same]
     for a, b in zip(here.inverse_maps[:same], there.inverse_maps[:same], strict=True):
         assert a.refinement == b.refinement
@@ -218,9 +226,7 @@ def test_a_partition_longer_than_the_limit_ends_the_run_cleanly_with_how_to_resu
 ) -> None:
     g = graph(two_host_bench, tmp_path)
     # The workstation first: it waits for the rig's side and says so.
-    workstation = g.bringup(
-        "ws", "--rig", "sim", *set_args({**RUN, "learner.rig_lost_limit_s": "4.0"}, "learner")
-    )
+    workstation = g.bringup("ws", "--rig", "sim", *set_args({**RUN, "rig_lost_limit_s": "4.0"}, "learner"))
     workstation.wait_for(
         "the learner's wait message", 120.0, lambda: "is the rig's side up?" in workstation.log()
     )
@@ -289,7 +295,7 @@ def test_a_learner_killed_during_exploitation_resumes_bit_for_bit_from_the_bag(
     g = graph(two_host_bench, tmp_path)
     # A fast rig slowed to 3x real time, so that the kill falls inside an attempt.
     sim, recorder = rig_nodes(g, "-p", "time_mode:=fast", "-p", "rig.fast_max_real_time_factor:=3.0")
-    learn_args = learner_args(RUN, sim_time=True)
+    learn_args = learner_args(COMPARED_RUN, sim_time=True)
     learner = g.node("ws", "g2p_learner", "learn", *learn_args)
     learner.wait_for_attempt(6)  # exploitation since attempt 4
     time.sleep(0.5)
@@ -311,10 +317,10 @@ def test_a_learner_killed_during_exploitation_resumes_bit_for_bit_from_the_bag(
     ends = sorted(set(attempt_ends(run)))
     assert ends == list(range(1, len(ends) + 1)) and len(ends) > k  # the run completes after the resume
     assert all(e.run_id == g.run_id for e in run.events if e.run_id)  # the continuation is the same run
-    # The uninterrupted run is the answer as long as neither played a sequence again (a goal whose answer
-    # was lost on a loaded machine: the rig then played more ticks, and from there the runs part).
-    if min(first_retry(run), first_retry(uninterrupted)) <= k:
-        return
+    # The uninterrupted run is the answer as long as neither played a sequence again (COMPARED_RUN).
+    assert min(first_retry(run), first_retry(uninterrupted)) > k, (
+        f"retried sequences: resumed run {lost_rig(run)}, reference {lost_rig(uninterrupted)}"
+    )
     reference_k = next(e for e in events(uninterrupted, "checkpoint") if e.attempt == k)
     assert after.detail["checkpoint"] == reference_k.detail["checkpoint"]
 
