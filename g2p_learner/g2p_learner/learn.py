@@ -13,9 +13,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import os
 import sys
 import threading
 import time
+from typing import NoReturn
 
 import rclpy
 from action_msgs.msg import GoalStatus
@@ -162,10 +164,8 @@ def main(args: list[str] | None = None) -> None:
     client = None
     code = 0
     spinner = None
-    # Torch takes about a second to import and is needed from the first fit on: imported while the graph
-    # is discovered and settles, rather than before the node exists. Joined before exit: an import still
-    # running when the interpreter finalizes fails it ("dictionary changed size during iteration" in
-    # weakref's exit hook, for a learner stopped within a second or two of its start).
+    # Torch takes a second or more to import and is needed from the first fit on: imported while the
+    # graph is discovered and settles, rather than before the node exists (a stop meanwhile: _exit_now).
     warm_up = threading.Thread(target=importlib.import_module, args=("g2p.inverse_map.training",))
     try:
         overrides = [] if options.control is None else [Parameter("learner.control", value=options.control)]
@@ -196,8 +196,21 @@ def main(args: list[str] | None = None) -> None:
             node.destroy_node()
         rclpy.try_shutdown()
         if warm_up.is_alive():
-            warm_up.join()
+            _exit_now(code)
     sys.exit(code)
+
+
+def _exit_now(code: int) -> NoReturn:
+    """End the process without finalizing the interpreter: a stop while torch is still being imported.
+
+    Waiting for the import can outlast the 5 s that `ros2 launch` grants (seconds more on a loaded machine
+    with a cold page cache), and finalizing while an import runs fails it ("dictionary changed size during
+    iteration" in weakref's exit hook). The node is destroyed and rclpy shut down: nothing is left to
+    finalize but the output streams.
+    """
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
 
 
 if __name__ == "__main__":

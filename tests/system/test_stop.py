@@ -16,7 +16,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from g2p.bags.dataset import load_run
 from g2p_interfaces.msg import LearnerEvent
-from tests.nodes.rosproc import RosPeer
+from tests.nodes.rosproc import NodeProcess, RosPeer, wait_until
 from tests.system.launched import (
     LAUNCH_SIGTERM_TIMEOUT_S,
     LaunchedGraph,
@@ -141,3 +141,23 @@ def test_a_learner_stopped_while_its_rig_does_not_answer_exits_in_time(
         graph.close()
     (end,) = [e for e in load_run(graph.bag).events if e.event == "run_end"]
     assert end.detail["cancelled"] == "sequence cancelled (the rig did not answer the cancel)"
+
+
+def test_a_learner_stopped_as_it_starts_exits_cleanly_in_time(tmp_path: Path) -> None:
+    # The learner imports torch in the background from its start: a stop then (the import takes seconds
+    # on a loaded machine with a cold page cache) neither waits for the import nor fails on it.
+    peer = RosPeer("stop_test_watch")
+    peer.start()
+    learner = NodeProcess("g2p_learner", "learn", [], tmp_path)
+    try:
+        wait_until(
+            lambda: ("learner", "/leg") in peer.node.get_node_names_and_namespaces(), 60.0, "the learner"
+        )
+        sent = time.monotonic()
+        code = learner.stop(signal.SIGINT, timeout_s=30.0)
+        took = time.monotonic() - sent
+    finally:
+        peer.close()
+    log = learner.log()
+    assert code == 0 and took < LAUNCH_SIGTERM_TIMEOUT_S, (code, took, log)
+    assert "Traceback" not in log and "Error" not in log, log
