@@ -3,7 +3,7 @@
     scripts/with-env python benchmarks/bench_two_hosts.py [faults] [placement] [rediscovery] [walltime] [soak]
         [--soak-rig-min 60]
 
-Runs on the two-host bench of the test suite (tests/twohost: two network namespaces joined by a
+Runs on the two-host bench (g2p_netbench: two network namespaces joined by a
 user-space link with delay, loss and partitions; needs root). The rig side runs ROS 2 Jazzy with the
 recorder beside it, the learner runs on this session's distribution, every process the installed
 executable.
@@ -32,7 +32,6 @@ import json
 import random
 import signal
 import subprocess
-import sys
 import tempfile
 import threading
 import time
@@ -40,17 +39,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from ament_index_python.packages import get_package_prefix
+
+from g2p.bags.dataset import RunData, load_run
+from g2p.bags.recover import recover_bag
+from g2p.plant import NOMINAL_TICK_HZ
+from g2p.safety import BASELINE_ACTIVATION
+from g2p_netbench.bench import TwoHostBench
+from g2p_netbench.graph import HostProcess, TwoHostGraph, ros_params
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from g2p.bags.dataset import RunData, load_run  # noqa: E402
-from g2p.bags.recover import recover_bag  # noqa: E402
-from g2p.plant import NOMINAL_TICK_HZ  # noqa: E402
-from g2p.safety import BASELINE_ACTIVATION  # noqa: E402
-from tests.nodes.rosproc import executable  # noqa: E402
-from tests.twohost.bench import TwoHostBench  # noqa: E402
-from tests.twohost.graph import HostProcess, TwoHostGraph, ros_params  # noqa: E402
 
 NS = ["--ros-args", "-r", "__ns:=/leg"]
 # Realtime runs: 8 s of babbling, attempts of 4 cycles (about 4 s), 1 exploration + 3 exploitation.
@@ -94,7 +92,7 @@ class Run:
     """One learning run on a bench: rig (sim) and recorder on the rig host, the learner on the other."""
 
     def __init__(self, bench: TwoHostBench, workdir: Path, run_id: str, params: dict[str, str], mode: str):
-        self.g = TwoHostGraph(bench, workdir, run_id)
+        self.g = TwoHostGraph(bench, ROOT, workdir, run_id)
         self.sim_args = [*NS, "-p", f"time_mode:={mode}"]
         self.learn_args = [*NS, "-p", "recorder_node:=recorder", *ros_params(params)]
         if mode == "fast":
@@ -311,7 +309,12 @@ def walltime(workdir: Path) -> dict[str, float]:
     out: dict[str, float] = {}
     start = time.monotonic()
     subprocess.run(
-        [str(executable("g2p_bringup", "bringup")), "--run-id", "onehost", "--no-report"],
+        [
+            str(Path(get_package_prefix("g2p_bringup")) / "lib" / "g2p_bringup" / "bringup"),
+            "--run-id",
+            "onehost",
+            "--no-report",
+        ],
         cwd=workdir,
         check=True,
         capture_output=True,
@@ -321,7 +324,7 @@ def walltime(workdir: Path) -> dict[str, float]:
         with TwoHostBench() as bench:
             if impairment:
                 bench.impair(**impairment)
-            g = TwoHostGraph(bench, workdir / name, name)
+            g = TwoHostGraph(bench, ROOT, workdir / name, name)
             rig = g.bringup("rig")
             start = time.monotonic()
             ws = g.bringup("ws")
@@ -339,7 +342,7 @@ def _messages_after(listener: HostProcess, t: float) -> list[float]:
 
 def _rediscovery_once(workdir: Path, name: str, partition_s: float) -> dict[str, Any]:
     with TwoHostBench() as bench:
-        g = TwoHostGraph(bench, workdir / f"rediscovery-{name.replace(' ', '-')}", "probe")
+        g = TwoHostGraph(bench, ROOT, workdir / f"rediscovery-{name.replace(' ', '-')}", "probe")
         peers = {"rig": bench.ws_ip, "ws": bench.rig_ip}
         envs = {
             h: {}
@@ -374,7 +377,7 @@ def rediscovery(workdir: Path, partition_s: float = 30.0) -> list[dict[str, Any]
 
 def _placement_once(workdir: Path, where: Any, partition_s: float) -> dict[str, Any]:
     with TwoHostBench() as bench:
-        g = TwoHostGraph(bench, workdir / f"recorder-{where}", f"recorder-{where}")
+        g = TwoHostGraph(bench, ROOT, workdir / f"recorder-{where}", f"recorder-{where}")
         sim = g.node("rig", "g2p_sim", "sim", *NS, "-p", "time_mode:=realtime")
         recorder = g.node(where, "g2p_recorder", "record", *NS, "-p", f"run_id:={g.run_id}")
         recorder.wait_for("recording the rig", 120.0, lambda: "/leg/joint_states" in recorder.log())

@@ -58,9 +58,9 @@ def _stop_leftover_processes() -> Iterator[None]:
 
 @pytest.fixture
 def two_host_bench() -> Iterator[Any]:
-    """A rig and a workstation network namespace joined by a clean link (tests/twohost), torn down after
+    """A rig and a workstation network namespace joined by a clean link (g2p_netbench), torn down after
     the test; skipped, with the reason, where namespaces cannot be made (not root)."""
-    from tests.twohost.bench import TwoHostBench, available  # only the tests that ask for a bench
+    from g2p_netbench.bench import TwoHostBench, available  # only the tests that ask for a bench
 
     reason = available()
     if reason is not None:

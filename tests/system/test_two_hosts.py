@@ -1,5 +1,5 @@
 """The graph on two hosts over a bad network: the rig (ROS 2 Jazzy, with the recorder beside it) in one
-network namespace, the learner in another, joined by the two_host_bench's impairable link (tests/twohost).
+network namespace, the learner in another, joined by the two_host_bench's impairable link (g2p_netbench).
 
 Each test is a user's run through the installed executables: `bringup --host rig|workstation`, or the
 nodes one by one where one of them is killed and started again. DDS traffic stays inside the two_host_bench's
@@ -19,13 +19,20 @@ from g2p.bags import bag_is_complete
 from g2p.bags.dataset import RunData, load_run
 from g2p.bags.resume import resume_point
 from g2p.safety import BASELINE_ACTIVATION
+from g2p_netbench.bench import TwoHostBench
+from g2p_netbench.graph import HostProcess, TwoHostGraph, ros_params, set_args
 from tests.commands import console_script
 from tests.nodes.rosproc import executable
 from tests.system.launched import Stopped, assert_every_tick_recorded, assert_stopped_cleanly
-from tests.twohost.bench import TwoHostBench
-from tests.twohost.graph import SHORT_RUN, HostProcess, TwoHostGraph, ros_params, set_args
 
+ROOT = Path(__file__).resolve().parents[2]
 SEED = 0
+# A short learning run: babbling (rig s), attempts of 4 cycles.
+SHORT_RUN = {
+    "learner.babbling.duration_s": "20.0",
+    "cycle.n_cycles": "4",
+    "search.exploitation_attempts": "4",
+}
 SILENCE_S = 2.0  # the learner's rig_silence_s (its default)
 # Seed 0 crosses 10 mm within its first attempts (which one depends on the machine's floating point:
 # torch picks its kernels by CPU), then 6 exploitation attempts.
@@ -51,7 +58,7 @@ REALTIME_RUN = {
 
 
 def graph(two_host_bench: TwoHostBench, tmp_path: Path, run_id: str = "two-hosts") -> TwoHostGraph:
-    return TwoHostGraph(two_host_bench, tmp_path, run_id)
+    return TwoHostGraph(two_host_bench, ROOT, tmp_path, run_id)
 
 
 def attempt_ends(run: RunData) -> list[int]:

@@ -1,6 +1,6 @@
 """Join two TUN devices in two network namespaces and forward IP packets between them, impaired.
 
-Run by path or as ``python -m tests.twohost.forwarder``; it needs root (CAP_NET_ADMIN) and only the standard
+Run by path or as ``python -m g2p_netbench.forwarder``; it needs root (CAP_NET_ADMIN) and only the standard
 library::
 
     forwarder.py --rig-netns /run/netns/A --rig-tun g2prig --ws-netns /run/netns/B --ws-tun g2pws --seed 1

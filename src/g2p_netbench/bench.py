@@ -114,7 +114,7 @@ def cleanup_stale() -> list[str]:
     Returns:
         The names of the namespaces deleted.
     """
-    removed = []
+    removed: list[str] = []
     try:
         names = sorted(p.name for p in NETNS_DIR.iterdir())
     except OSError:
@@ -433,7 +433,8 @@ class TwoHostBench:
                 f"forwarder gave no reply to {what} (exit status {proc.returncode}); its log:\n"
                 + self.forwarder_log()
             )
-        return json.loads(line)
+        reply: dict[str, Any] = json.loads(line)
+        return reply
 
     def command(self, cmd: dict[str, Any]) -> dict[str, Any]:
         """Send one control command to the forwarder (see forwarder.py) and return its reply."""

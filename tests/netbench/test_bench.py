@@ -19,7 +19,7 @@ from typing import Any
 
 import pytest
 
-from tests.twohost.bench import (
+from g2p_netbench.bench import (
     NETNS_DIR,
     BenchError,
     TwoHostBench,

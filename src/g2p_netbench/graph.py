@@ -1,9 +1,10 @@
-"""The G2P graph on a two-host bench, started the way a user starts it on a Pi and a workstation.
+"""The G2P graph of a checkout on a two-host bench, started as a user starts it on a Pi and a workstation.
 
-The rig side runs ROS 2 Jazzy (the Raspberry Pi's distribution) from the project's Jazzy environment; the
-workstation side runs the distribution of this test session. Each side's processes are the installed
-executables, started in their host's namespace with the two-host DDS profile (UDPv4 only, on the
-bench's link), either through `bringup --host ...` or one node at a time (to kill and restart one).
+The rig side runs ROS 2 Jazzy (the Raspberry Pi's distribution) from the checkout's Jazzy environment; the
+workstation side runs the distribution of the calling process (G2P_ROS_DISTRO). Each side's processes are
+the installed executables, run through the checkout's scripts/with-env in their host's namespace with the
+two-host DDS profile (UDPv4 only, on the bench's link), either through `bringup --host ...` or one node
+at a time (to kill and restart one).
 """
 
 from __future__ import annotations
@@ -16,18 +17,9 @@ import time
 from pathlib import Path
 from typing import IO
 
-from tests.nodes.rosproc import stop_process
-from tests.twohost.bench import Host, TwoHostBench
+from g2p_netbench.bench import STOP_GRACE_S, BenchError, Host, TwoHostBench
 
-ROOT = Path(__file__).resolve().parents[2]
-ROS2_RUN = ROOT / "scripts" / "ros2-run"
 RIG_DISTRO = "jazzy"
-# The same short learning run everywhere: babbling (rig s), attempts of 4 cycles.
-SHORT_RUN = {
-    "learner.babbling.duration_s": "20.0",
-    "cycle.n_cycles": "4",
-    "search.exploitation_attempts": "4",
-}
 ATTEMPT_LINE = re.compile(r"^attempt +(\d+) ", re.M)
 
 
@@ -55,9 +47,9 @@ class HostProcess:
         deadline = time.monotonic() + condition_s
         while not check():  # type: ignore[operator]
             if self.popen.poll() is not None:
-                raise AssertionError(f"exited ({self.popen.returncode}) before {what}:\n{self.log()[-3000:]}")
+                raise BenchError(f"exited ({self.popen.returncode}) before {what}:\n{self.log()[-3000:]}")
             if time.monotonic() > deadline:
-                raise AssertionError(f"no {what} within {condition_s:g} s:\n{self.log()[-3000:]}")
+                raise BenchError(f"no {what} within {condition_s:g} s:\n{self.log()[-3000:]}")
             time.sleep(0.05)
 
     def wait_for_attempt(self, number: int, timeout_s: float = 300.0) -> None:
@@ -66,16 +58,22 @@ class HostProcess:
 
     def stop(self, sig: int = signal.SIGINT, timeout_s: float = 30.0) -> int:
         """Signal the process and wait for it (kill after `timeout_s`); its exit code."""
-        code = stop_process(self.popen, sig, timeout_s)
+        if self.popen.poll() is None:
+            self.popen.send_signal(sig)
+            try:
+                self.popen.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                self.popen.kill()
+                self.popen.wait(STOP_GRACE_S)
         self._log.close()
-        return code
+        return self.popen.returncode
 
     def wait(self, timeout_s: float) -> int:
         """Wait for the process to end by itself; its exit code."""
         try:
             return self.popen.wait(timeout_s)
         except subprocess.TimeoutExpired as err:
-            raise AssertionError(f"still running after {timeout_s:g} s:\n{self.log()[-3000:]}") from err
+            raise BenchError(f"still running after {timeout_s:g} s:\n{self.log()[-3000:]}") from err
 
 
 class TwoHostGraph:
@@ -83,12 +81,15 @@ class TwoHostGraph:
 
     Args:
         bench: the bench (open).
+        checkout: the project's checkout, bootstrapped (its scripts/ set up each side's environment).
         workdir: working directory of every process (bags/ and log/ go there).
         run_id: the run's id (the rig host's recorder names the bag after it).
     """
 
-    def __init__(self, bench: TwoHostBench, workdir: Path, run_id: str) -> None:
+    def __init__(self, bench: TwoHostBench, checkout: Path, workdir: Path, run_id: str) -> None:
         self.bench = bench
+        self._with_env = checkout / "scripts" / "with-env"
+        self._ros2_run = checkout / "scripts" / "ros2-run"
         self.workdir = workdir
         workdir.mkdir(parents=True, exist_ok=True)
         self.run_id = run_id
@@ -111,9 +112,11 @@ class TwoHostGraph:
     def _in_ros(
         self, host: Host, name: str, command: list[str], env: dict[str, str], discovery: str | None = None
     ) -> HostProcess:
-        """`command` in `host`'s ROS environment (scripts/with-env), optionally with a discovery range
-        (with-env keeps one host on loopback; the nodes of a two-host graph use the link)."""
-        prefix = [str(ROOT / "scripts" / "with-env")]
+        """`command` in `host`'s ROS environment (scripts/with-env), optionally with a discovery range.
+
+        with-env keeps one host on loopback; the nodes of a two-host graph use the link.
+        """
+        prefix = [str(self._with_env)]
         if discovery is not None:
             prefix += ["env", f"ROS_AUTOMATIC_DISCOVERY_RANGE={discovery}"]
         return self._start(host, name, [*prefix, *command], env)
@@ -121,8 +124,10 @@ class TwoHostGraph:
     def _with_profile(
         self, host: Host, name: str, command: list[str], extra_env: dict[str, str] | None = None
     ) -> HostProcess:
-        """`command` on `host` with the two-host DDS profile of its distribution (SUBNET discovery unless
-        `extra_env` names a range)."""
+        """`command` on `host` with the two-host DDS profile of its distribution.
+
+        Discovery is SUBNET unless `extra_env` names a range.
+        """
         env = self._environment(host)
         env[_PROFILE_VARIABLE[env["G2P_ROS_DISTRO"]]] = str(self._profile(host, env))
         env.update(extra_env or {})
@@ -142,12 +147,12 @@ class TwoHostGraph:
             "--no-report",
             *args,
         ]
-        command = [str(ROS2_RUN), "g2p_bringup", "bringup", *options]
+        command = [str(self._ros2_run), "g2p_bringup", "bringup", *options]
         return self._in_ros(host, f"bringup-{side}", command, self._environment(host))
 
     def node(self, host: Host, package: str, executable: str, *args: str) -> HostProcess:
         """One installed node on `host`, with the two-host DDS profile of its distribution."""
-        return self._with_profile(host, executable, [str(ROS2_RUN), package, executable, *args])
+        return self._with_profile(host, executable, [str(self._ros2_run), package, executable, *args])
 
     def python(
         self, host: Host, script: Path, *args: str, extra_env: dict[str, str] | None = None
@@ -156,14 +161,16 @@ class TwoHostGraph:
         return self._with_profile(host, script.stem, ["python", str(script), *args], extra_env)
 
     def _profile(self, host: Host, env: dict[str, str]) -> Path:
-        """The two-host profile for `host`'s address, made by that host's distribution (the XML of Fast
-        DDS 2 and 3 differ), as bringup makes it."""
+        """The two-host profile for `host`'s address, made by that host's distribution, as bringup does.
+
+        The XML of Fast DDS 2 and 3 differ.
+        """
         path = self.workdir / f"fastdds-{host}.xml"
         if not path.exists():
             address = self.bench.ip(host)
             make = f"from g2p_bringup.dds import two_host_profile; print(two_host_profile({address!r}))"
             done = subprocess.run(
-                [str(ROOT / "scripts" / "with-env"), "python", "-c", make],
+                [str(self._with_env), "python", "-c", make],
                 env=env,
                 capture_output=True,
                 text=True,
@@ -179,8 +186,11 @@ _PROFILE_VARIABLE = {"jazzy": "FASTRTPS_DEFAULT_PROFILES_FILE", "kilted": "FASTD
 
 
 def _outside_environment() -> dict[str, str]:
-    """This process's environment without the ROS environment it runs in (scripts/with-env sets up the
-    other distribution's from scratch: its libraries must not be shadowed by this one's)."""
+    """This process's environment without the ROS environment it runs in.
+
+    scripts/with-env sets up the other distribution's from scratch: its libraries must not be shadowed
+    by this one's.
+    """
     venv = os.environ.get("VIRTUAL_ENV", "")
     # OPENBLAS_CORETYPE and OPENBLAS_L2_SIZE, set on some processors, choose the BLAS kernels, hence the
     # last bits of every map: runs compared with a one-host run need the same ones.
