@@ -17,7 +17,9 @@ import numpy as np
 
 from g2p.bags import bag_is_complete
 from g2p.bags.dataset import RunData, load_run
+from g2p.bags.reader import BagReader
 from g2p.bags.resume import resume_point
+from g2p.bags.ticks import header_stamp_ns
 from g2p.safety import BASELINE_ACTIVATION
 from g2p_netbench.bench import TwoHostBench
 from g2p_netbench.graph import HostProcess, TwoHostGraph, ros_params, set_args
@@ -83,6 +85,17 @@ def first_retry(run: RunData) -> int:
 def lost_rig(run: RunData) -> list[dict[str, object]]:
     """Why the learner abandoned sequences (its rig_lost events' details)."""
     return [e.detail for e in events(run, "rig_lost")]
+
+
+def received_at(run: RunData, bag: Path, t_s: float) -> float:
+    """When the recorder received the rig's joint state of `run`'s tick at `t_s` (s): wall s."""
+    (k,) = np.flatnonzero(run.ticks.recording.t_s == t_s)
+    stamp = run.ticks.stamps_ns[k]  # exact: a float of seconds since 1970 holds no whole nanoseconds
+    with BagReader(bag) as reader:
+        for m in reader.messages(["/leg/joint_states"]):
+            if header_stamp_ns(m.msg.header) == stamp:
+                return float(m.timestamp_ns) * 1e-9
+    raise AssertionError(f"no joint state stamped {stamp} ns in {bag}")
 
 
 def published_ticks(rig_log: str) -> int:
@@ -203,21 +216,22 @@ def test_a_partition_during_an_attempt_retries_it_once_the_link_returns(
     assert 0.0 < lost.stamp_ns * 1e-9 - cut < SILENCE_S + 1.0
     assert back.stamp_ns * 1e-9 > healed
     # The retried attempt's data is the one played after the link returned; the lost one's is not used.
+    # Each comparison stays on one clock. A tick's stamp is the rig's time of the tick, tens of ms off
+    # the wall clock (measured: the first tick of attempt 2 stamped 29 ms before the learner's
+    # attempt_start, which preceded it): the retry is placed on the wall clock by when the recorder
+    # beside the rig received its first tick, and the lost sequence found after attempt 1's last tick.
     retried = next(a for a in run.attempts if a.attempt == 2 and a.end is not None)
-    assert retried.recording.t_s[0] > healed
+    assert received_at(run, g.bag, retried.recording.t_s[0]) > healed
     point = resume_point(g.bag)
     assert point.checkpoint.attempt == 3 and len(point.attempts) == 3  # digests of the data used: verified
     # The rig held baseline once the lost sequence was over, until the retry began.
-    first_start = next(e for e in events(run, "attempt_start") if e.attempt == 2)
+    first = next(a for a in run.attempts if a.attempt == 1)
     planned = len(retried.desired_position_rad)
     t, act = run.ticks.recording.t_s, run.ticks.recording.activation
-    stamps = run.ticks.stamps_ns
     # The lost sequence is the retried one (same features, same map): find where the rig played it.
     played = retried.recording.activation
     lost_start = next(
-        k
-        for k in np.flatnonzero(stamps > first_start.stamp_ns)
-        if np.array_equal(act[k : k + planned], played)
+        k for k in np.flatnonzero(t > first.recording.t_s[-1]) if np.array_equal(act[k : k + planned], played)
     )
     assert t[lost_start] < retried.recording.t_s[0]  # the lost one, not the retry
     idle = (t > t[lost_start + planned - 1]) & (t < retried.recording.t_s[0] - 0.05)
