@@ -94,7 +94,8 @@ def _replay(bag: Path, rate: float, config: ViewerConfig, stop: threading.Event)
     with BagReader(bag):  # an unreadable bag is an error now, not once a client has connected
         pass
     # A recorded run is shown whole: the client's backlog holds all of it, however slow the client.
-    config = dataclasses.replace(config, message_backlog=replay_message_bound(bag))
+    backlog = max(config.message_backlog, replay_message_bound(bag))
+    config = dataclasses.replace(config, message_backlog=backlog)
     with LegViewer(packaged_leg_description(), config) as viewer:
         print(f"view: {bag} on {viewer.url}; waiting for a Foxglove client", flush=True)
         if not viewer.wait_for_client(stop=stop):
