@@ -22,10 +22,10 @@ from g2p.hardware.errors import (
     HardwareFault,
 )
 from g2p.hardware.ina219 import INA219
+from g2p.hardware.leg import HardwareCounters, HardwareLeg, HardwareLegConfig
 from g2p.hardware.ls7366r import LS7366R, BeltOdometer
 from g2p.hardware.outputs import MotorOutputs, PwmOutputs
 from g2p.hardware.pca9685 import PCA9685
-from g2p.hardware.plant import HardwareCounters, HardwareLeg, HardwareLegConfig
 from g2p.hardware.sysfs_pwm import SysfsPwmChannel, SysfsPwmGroup
 from g2p.hardware.wiring import (
     BeltConfig,

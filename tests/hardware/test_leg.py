@@ -12,7 +12,7 @@ import pytest
 from g2p.hardware import HardwareFault, HardwareLeg, HardwareLegConfig, MonotonicClock, WiringConfig
 from g2p.hardware.fake_chips import FaultKind
 from g2p.hardware.fake_rig import FakeRigConfig, fake_devices
-from g2p.hardware.plant import dither_activation
+from g2p.hardware.leg import dither_activation
 from g2p.plant import hold
 from g2p.sim import TREADMILL_CARRIAGE_HEIGHT_M
 from tests.hardware.fake_legs import FAST, fake_leg

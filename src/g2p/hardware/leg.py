@@ -1,4 +1,4 @@
-"""`HardwareLeg`: the physical rig as a `g2p.plant.Plant`, composed of its devices.
+"""`HardwareLeg`: the physical leg as a `g2p.plant.Plant`, composed of its devices.
 
 One absolute-deadline loop on a monotonic clock: tick k ends at t0 + k / tick_hz, whatever the jitter of
 the ticks before it. Within a tick, `step` writes the clamped activations as duty cycles, samples the
@@ -18,11 +18,13 @@ outputs off and releases the buses.
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
-import os
 import threading
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -30,19 +32,28 @@ from g2p.config import require, require_non_negative, require_positive
 from g2p.hardware.clock import Clock, MonotonicClock
 from g2p.hardware.devices import RigDevices
 from g2p.hardware.errors import EncoderErrorFlag, EncoderParityError, HardwareError, HardwareFault
+from g2p.hardware.ina219 import INA219
 from g2p.hardware.ls7366r import BeltOdometer
+from g2p.hardware.realtime import StallWatchdog, request_sched_fifo
 from g2p.hardware.wiring import WiringConfig
 from g2p.plant import N_JOINTS, N_MOTORS, NOMINAL_TICK_HZ, FloatArray, TickSample
 from g2p.safety import BASELINE_ACTIVATION, check_activation, clamp_activation
 
 _log = logging.getLogger(__name__)
-_WATCHDOG_POLL_S = 0.01
+_T = TypeVar("_T")
 
 
 def _named(device: str, err: Exception) -> str:
     """`device: error`, without repeating the device when the error already names it."""
     text = str(err)
     return text if text.startswith(device) else f"{device}: {text}"
+
+
+def _read_power(sensor: INA219) -> tuple[float, float, bool]:
+    """One reading of a current sensor: (current (A), bus voltage (V), whether the power overflowed)."""
+    current = sensor.read_current_a()
+    voltage, overflow = sensor.read_bus_voltage_v()
+    return current, voltage, overflow
 
 
 @dataclass(frozen=True)
@@ -261,7 +272,6 @@ class HardwareLeg:
         self._closed = False
         self._running = False
         self._fault: HardwareFault | None = None
-        self._watchdog_tripped = False
         self._realtime_threads: set[int] = set()
 
         first = _Tick()
@@ -279,11 +289,11 @@ class HardwareLeg:
         self._power = np.zeros(N_MOTORS)
         self._energy = np.zeros(N_MOTORS)
 
-        self._stop_watchdog = threading.Event()
-        self._watchdog: threading.Thread | None = None
+        self._watchdog: StallWatchdog | None = None
         if cfg.step_watchdog_s > 0:
-            self._watchdog = threading.Thread(target=self._watch, name="hardware_leg_watchdog", daemon=True)
-            self._watchdog.start()
+            self._watchdog = StallWatchdog(
+                cfg.step_watchdog_s, self.seconds_since_activity, lambda: self._running, self._on_stall
+            )
 
     # ----------------------------------------------------------------------------------------- Plant API
     @property
@@ -376,9 +386,8 @@ class HardwareLeg:
 
     def close(self) -> None:
         """Hold baseline for `close_hold_s`, switch the outputs off, release the devices. Idempotent."""
-        self._stop_watchdog.set()
-        if self._watchdog is not None and self._watchdog is not threading.current_thread():
-            self._watchdog.join(1.0)
+        if self._watchdog is not None:
+            self._watchdog.stop()
         with self._io:
             if self._closed:
                 return
@@ -430,7 +439,8 @@ class HardwareLeg:
     def _tick(self, applied: FloatArray) -> TickSample:
         tick = _Tick()
         self._write(applied, tick)
-        self._watchdog_tripped = False
+        if self._watchdog is not None:
+            self._watchdog.rearm()
         deadline = self._next_deadline
         while self._next_sample < deadline:
             self._clock.sleep_until(self._next_sample)
@@ -507,17 +517,34 @@ class HardwareLeg:
                     _log.error("cannot switch the outputs off either: %s", err2)
 
     # ----------------------------------------------------------------------------------------- device I/O
-    def _write(self, applied: FloatArray, tick: _Tick) -> None:
-        for attempt in range(self.config.retries + 1):
+    def _try(self, tick: _Tick, device: str, bus_errors: str, transaction: Callable[[], _T]) -> _T | None:
+        """Run one device transaction under the bus lock, retried up to `retries` times at once.
+
+        Each failure is counted: an encoder's parity error or error flag under its own counter, any other
+        OSError under `bus_errors` (a `HardwareCounters` field). When every try failed, the tick records a
+        fault naming the device and None is returned (the caller keeps the last good value).
+        """
+        last: Exception | None = None
+        for _ in range(self.config.retries + 1):
             with self._io:
                 self._require_open()
                 try:
-                    self._outputs.apply(applied)
-                    return
+                    return transaction()
+                except EncoderParityError as err:
+                    self.counters.encoder_parity_errors += 1
+                    last = err
+                except EncoderErrorFlag as err:
+                    self.counters.encoder_error_flags += 1
+                    last = err
                 except OSError as err:
-                    self.counters.pwm_errors += 1
-                    if attempt == self.config.retries:
-                        tick.faults.append(f"PWM write: {err}")
+                    setattr(self.counters, bus_errors, getattr(self.counters, bus_errors) + 1)
+                    last = err
+        assert last is not None
+        tick.faults.append(_named(device, last))
+        return None
+
+    def _write(self, applied: FloatArray, tick: _Tick) -> None:
+        self._try(tick, "PWM write", "pwm_errors", lambda: self._outputs.apply(applied))
 
     def _sample_currents(self, tick: _Tick) -> None:
         t = self._clock.now()
@@ -525,62 +552,32 @@ class HardwareLeg:
         self._last_sample_t = t
         self._last_activity = t
         for i, sensor in enumerate(self._dev.current_sensors):
-            for attempt in range(self.config.retries + 1):
-                with self._io:
-                    self._require_open()
-                    try:
-                        current = sensor.read_current_a()
-                        voltage, overflow = sensor.read_bus_voltage_v()
-                    except OSError as err:
-                        self.counters.i2c_errors += 1
-                        if attempt == self.config.retries:
-                            tick.faults.append(_named(sensor.name, err))
-                        continue
-                if overflow:
-                    self.counters.current_overflows += 1
-                power = current * voltage
-                tick.current_sum[i] += current
-                tick.power_sum[i] += power
-                tick.n[i] += 1
-                self._energy[i] += power * dt
-                break
+            reading = self._try(tick, sensor.name, "i2c_errors", functools.partial(_read_power, sensor))
+            if reading is None:
+                continue
+            current, voltage, overflow = reading
+            if overflow:
+                self.counters.current_overflows += 1
+            power = current * voltage
+            tick.current_sum[i] += current
+            tick.power_sum[i] += power
+            tick.n[i] += 1
+            self._energy[i] += power * dt
         tick.rounds += 1
         self.counters.current_samples += 1
 
     def _read_angles(self, tick: _Tick, previous: FloatArray) -> FloatArray:
         angles = previous.copy()
         for j, encoder in enumerate(self._dev.encoders):
-            for attempt in range(self.config.retries + 1):
-                with self._io:
-                    self._require_open()
-                    try:
-                        angles[j] = encoder.read_angle_rad()
-                        break
-                    except EncoderParityError as err:
-                        self.counters.encoder_parity_errors += 1
-                        last: Exception = err
-                    except EncoderErrorFlag as err:
-                        self.counters.encoder_error_flags += 1
-                        last = err
-                    except OSError as err:
-                        self.counters.spi_errors += 1
-                        last = err
-                if attempt == self.config.retries:
-                    tick.faults.append(_named(encoder.name, last))
+            angle = self._try(tick, encoder.name, "spi_errors", encoder.read_angle_rad)
+            if angle is not None:
+                angles[j] = angle
         return angles
 
     def _read_belt(self, tick: _Tick) -> float:
         counter = self._dev.belt
-        for attempt in range(self.config.retries + 1):
-            with self._io:
-                self._require_open()
-                try:
-                    return self._odometer.update(counter.read_count())
-                except OSError as err:
-                    self.counters.spi_errors += 1
-                    if attempt == self.config.retries:
-                        tick.faults.append(_named(counter.name, err))
-        return self._odometer.travel_mm
+        count = self._try(tick, counter.name, "spi_errors", counter.read_count)
+        return self._odometer.travel_mm if count is None else self._odometer.update(count)
 
     # ----------------------------------------------------------------------------------------- helpers
     def _start_outputs(self) -> None:
@@ -615,31 +612,23 @@ class HardwareLeg:
         if priority <= 0 or ident in self._realtime_threads:
             return
         self._realtime_threads.add(ident)
-        try:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-        except (PermissionError, AttributeError, OSError) as err:
-            _log.warning("SCHED_FIFO %d not permitted (%s): running with normal scheduling", priority, err)
-            return
-        self.counters.sched_fifo = 1
+        if request_sched_fifo(priority):
+            self.counters.sched_fifo = 1
 
-    def _watch(self) -> None:
+    def _on_stall(self) -> bool:
+        """The watchdog's action: outputs to baseline (off if that fails) when the loop really stalled."""
         limit = self.config.step_watchdog_s
-        while not self._stop_watchdog.wait(_WATCHDOG_POLL_S):
-            if not self._running or self._watchdog_tripped or self.seconds_since_activity() < limit:
-                continue
-            with self._io:
-                if not self._running or self._closed or self.seconds_since_activity() < limit:
-                    continue
-                self._watchdog_tripped = True
-                self.counters.watchdog_trips += 1
-                _log.warning(
-                    "watchdog: no tick for %.3f s: outputs to baseline", self.seconds_since_activity()
-                )
+        with self._io:
+            if not self._running or self._closed or self.seconds_since_activity() < limit:
+                return False
+            self.counters.watchdog_trips += 1
+            _log.warning("watchdog: no tick for %.3f s: outputs to baseline", self.seconds_since_activity())
+            try:
+                self._outputs.apply(self._baseline)
+            except OSError as err:
+                _log.error("watchdog: cannot write baseline (%s): switching the outputs off", err)
                 try:
-                    self._outputs.apply(self._baseline)
-                except OSError as err:
-                    _log.error("watchdog: cannot write baseline (%s): switching the outputs off", err)
-                    try:
-                        self._outputs.off()
-                    except OSError:
-                        pass
+                    self._outputs.off()
+                except OSError:
+                    pass
+            return True
