@@ -23,9 +23,10 @@ import hashlib
 import json
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
+import jsonschema
 import numpy as np
 from numpy.typing import NDArray
 
@@ -36,15 +37,69 @@ from g2p.learner import Learner, LearnerConfig
 from g2p.limit_cycle import LimitCycleConfig
 from g2p.plant import Recording
 from g2p.search import FloatArray, Phase, RewardSearch, SearchConfig, SearchFinished
+from g2p.seeds import SeedStreams
 
 FORMAT_VERSION = 1
 """Version of the checkpoint's JSON format; bump on any change of keys or meaning."""
 _KIND = "g2p.treadmill_checkpoint"
-RNG_NAMES = ("babbling", "inverse_map", "search")
-"""The generators a checkpoint keeps: the learner's babbling and map streams, the run's search stream."""
+RNG_NAMES = tuple(f.name for f in fields(SeedStreams) if f.name != "tracking")
+"""The generators a checkpoint keeps: the run's streams (`SeedStreams`) but the free-movement experiments'."""
 _DIGEST_HEX = (
     16  # a segment's digest: the first 64 bits of the sha256 of its pairs, enough to tell data apart
 )
+
+
+_COUNT = {"type": "integer", "minimum": 0}
+_FEATURES = {"type": "array", "items": {"type": "number"}, "minItems": 1}
+_NUMBER_OR_NULL = {"type": ["number", "null"]}
+
+
+def _record(**properties: object) -> dict[str, object]:
+    """The schema of an object with exactly these properties, all required."""
+    return {
+        "type": "object",
+        "required": list(properties),
+        "additionalProperties": False,
+        "properties": properties,
+    }
+
+
+SCHEMA: dict[str, Any] = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": "G2P treadmill checkpoint",
+    **_record(
+        kind={"const": _KIND},
+        format_version={"const": FORMAT_VERSION},
+        attempt=_COUNT,
+        refinements=_COUNT,
+        inverse_map={"type": "object", "additionalProperties": {"$ref": "#/$defs/numbers"}},
+        validation_mask=_record(n=_COUNT, packbits_base64={"type": "string"}),
+        rng_states=_record(**{name: {"type": "object"} for name in RNG_NAMES}),
+        search=_record(
+            told={"type": "array", "items": _record(features=_FEATURES, reward_mm={"type": "number"})},
+            phase={"enum": [p.value for p in Phase]},
+            best_features={"anyOf": [_FEATURES, {"type": "null"}]},
+            best_reward_mm=_NUMBER_OR_NULL,
+            sigma=_NUMBER_OR_NULL,
+            n_exploration=_COUNT,
+            n_exploitation=_COUNT,
+        ),
+        pending_features={"anyOf": [_FEATURES, {"type": "null"}]},
+        segments={
+            "type": "array",
+            "items": _record(
+                label={"type": "string"},
+                n_samples=_COUNT,
+                digest={"type": "string", "pattern": f"^[0-9a-f]{{{_DIGEST_HEX}}}$"},
+            ),
+        },
+    ),
+    "$defs": {
+        "numbers": {"type": "array", "items": {"anyOf": [{"type": "number"}, {"$ref": "#/$defs/numbers"}]}}
+    },
+}
+"""The checkpoint's JSON format as a JSON Schema (2020-12); `Checkpoint.from_json` validates against it."""
+_VALIDATOR = jsonschema.Draft202012Validator(SCHEMA)
 
 
 class CheckpointError(ValueError):
@@ -154,8 +209,12 @@ class Checkpoint:
     def from_json(cls, text: str, source: str) -> Checkpoint:
         """Read a checkpoint written by `to_json`.
 
+        The document is checked against `SCHEMA` (JSON Schema 2020-12, with the `jsonschema` library), then
+        for what a schema cannot say: the map's names and shapes, the mask's size, the generators' states
+        and the agreement of the parts.
+
         Args:
-            text: the JSON text.
+            text: the JSON text (standard JSON: NaN, Infinity and numbers beyond float64 are refused).
             source: where the text came from (e.g. a bag and event), for error messages.
 
         Raises:
@@ -164,34 +223,33 @@ class Checkpoint:
                 and the key.
         """
         try:
-            doc = json.loads(text)
-        except json.JSONDecodeError as err:
+            doc = json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
+        except (json.JSONDecodeError, ValueError) as err:
             raise CheckpointError(f"{source}: not JSON: {err}") from err
-        r = _Reader(source)
         if not isinstance(doc, dict) or doc.get("kind") != _KIND:
             kind = doc.get("kind") if isinstance(doc, dict) else None
             raise CheckpointError(f"{source}: not a treadmill checkpoint (kind {kind!r}, expected {_KIND!r})")
-        version = r.get(doc, "format_version", int)
-        if version != FORMAT_VERSION:
+        if doc.get("format_version") != FORMAT_VERSION:
             raise CheckpointError(
-                f"{source}: format_version {version} is not supported (expected {FORMAT_VERSION})"
+                f"{source}: format_version {doc.get('format_version')!r} is not supported "
+                f"(expected {FORMAT_VERSION})"
             )
-        attempt = r.count(doc, "attempt")
-        refinements = r.count(doc, "refinements")
+        error = jsonschema.exceptions.best_match(_VALIDATOR.iter_errors(doc))
+        if error is not None:
+            where = error.json_path.removeprefix("$").removeprefix(".") or "the document"
+            raise CheckpointError(f"{source}: {where}: {error.message}")
 
-        maps = r.get(doc, "inverse_map", dict)
-        arrays = {str(name): r.floats(value, f"inverse_map.{name}") for name, value in maps.items()}
+        arrays = {
+            name: _array(value, f"{source}: inverse_map.{name}") for name, value in doc["inverse_map"].items()
+        }
         try:
             InverseMap.from_arrays(arrays, source=f"{source}: inverse_map")  # checks names and shapes
         except InverseMapFormatError as err:
             raise CheckpointError(str(err)) from err
 
-        mask_doc = r.get(doc, "validation_mask", dict)
-        n_mask = r.count(mask_doc, "n", "validation_mask.")
+        n_mask = doc["validation_mask"]["n"]
         try:
-            packed = base64.b64decode(
-                r.get(mask_doc, "packbits_base64", str, "validation_mask."), validate=True
-            )
+            packed = base64.b64decode(doc["validation_mask"]["packbits_base64"], validate=True)
         except binascii.Error as err:
             raise CheckpointError(f"{source}: validation_mask.packbits_base64 is not base64: {err}") from err
         if len(packed) != (n_mask + 7) // 8:
@@ -201,28 +259,44 @@ class Checkpoint:
             )
         mask = np.unpackbits(np.frombuffer(packed, dtype=np.uint8), count=n_mask).astype(bool)
 
-        states = r.get(doc, "rng_states", dict)
-        if set(states) != set(RNG_NAMES):
-            raise CheckpointError(f"{source}: rng_states has {sorted(states)}, expected {sorted(RNG_NAMES)}")
+        states = doc["rng_states"]
         for name in RNG_NAMES:
             try:
                 np.random.PCG64().state = states[name]
             except (TypeError, ValueError, KeyError) as err:
                 raise CheckpointError(f"{source}: rng_states.{name} is not a PCG64 state: {err!r}") from err
 
-        search = r.search(r.get(doc, "search", dict))
+        s = doc["search"]
+        search = SearchSnapshot(
+            told=tuple((np.array(t["features"], dtype=np.float64), float(t["reward_mm"])) for t in s["told"]),
+            phase=Phase(s["phase"]),
+            best_features=None
+            if s["best_features"] is None
+            else np.array(s["best_features"], dtype=np.float64),
+            best_reward_mm=-math.inf if s["best_reward_mm"] is None else float(s["best_reward_mm"]),
+            sigma=None if s["sigma"] is None else float(s["sigma"]),
+            n_exploration=s["n_exploration"],
+            n_exploitation=s["n_exploitation"],
+        )
+        if search.n_exploration + search.n_exploitation != len(search.told):
+            raise CheckpointError(
+                f"{source}: search counts {search.n_exploration} exploration + {search.n_exploitation} "
+                f"exploitation attempts, but {len(search.told)} were told"
+            )
+        pending = (
+            None if doc["pending_features"] is None else np.array(doc["pending_features"], dtype=np.float64)
+        )
         n_features = {len(f) for f, _ in search.told}
-        pending_doc = r.get(doc, "pending_features", (list, type(None)))
-        pending = None if pending_doc is None else r.floats(pending_doc, "pending_features", 1)
         n_features.update(len(f) for f in (search.best_features, pending) if f is not None)
         if len(n_features) > 1:
             raise CheckpointError(f"{source}: feature vectors of different lengths {sorted(n_features)}")
+        attempt, refinements = doc["attempt"], doc["refinements"]
         if attempt != len(search.told):
             raise CheckpointError(
                 f"{source}: attempt is {attempt} but the search was told {len(search.told)} attempts"
             )
 
-        segments = tuple(r.segment(g, k) for k, g in enumerate(r.get(doc, "segments", list)))
+        segments = tuple(SegmentDigest(g["label"], g["n_samples"], g["digest"]) for g in doc["segments"])
         if len(segments) <= refinements:
             raise CheckpointError(
                 f"{source}: {len(segments)} dataset segments cannot hold babbling and {refinements} "
@@ -378,102 +452,30 @@ def _segment(label: str, pairs: TrainingPairs) -> SegmentDigest:
     return SegmentDigest(label, len(pairs), digest.hexdigest()[:_DIGEST_HEX])
 
 
-class _Reader:
-    """Typed access to a parsed checkpoint document, raising CheckpointError that names the source and key."""
+def _refuse_constant(name: str) -> None:
+    raise ValueError(f"{name} is not a JSON number")
 
-    def __init__(self, source: str) -> None:
-        self.source = source
 
-    def get(self, doc: Mapping[str, Any], key: str, kind: type | tuple[type, ...], where: str = "") -> Any:
-        """doc[key], which must be of `kind` (a bool is not an int here)."""
-        if key not in doc:
-            raise CheckpointError(f"{self.source}: {where}{key} is missing")
-        value = doc[key]
-        kinds = kind if isinstance(kind, tuple) else (kind,)
-        if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
-            names = " or ".join("null" if k is type(None) else k.__name__ for k in kinds)
-            raise CheckpointError(f"{self.source}: {where}{key} must be {names}, got {value!r:.80}")
-        return value
+def _finite_float(text: str) -> float:
+    """A JSON number as a float; one beyond float64's range (1e400) is refused rather than read as inf."""
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"{text} is out of the range of a float64")
+    return value
 
-    def count(self, doc: Mapping[str, Any], key: str, where: str = "") -> int:
-        """doc[key], an integer >= 0."""
-        value: int = self.get(doc, key, int, where)
-        if value < 0:
-            raise CheckpointError(f"{self.source}: {where}{key} must be >= 0, got {value}")
-        return value
 
-    def number(self, doc: Mapping[str, Any], key: str, where: str) -> float | None:
-        """doc[key], a finite number or null."""
-        value = self.get(doc, key, (int, float, type(None)), where)
-        if value is not None and not math.isfinite(value):
-            raise CheckpointError(f"{self.source}: {where}{key} must be finite, got {value}")
-        return None if value is None else float(value)
-
-    def floats(self, value: Any, name: str, ndim: int | None = None) -> FloatArray:
-        """A nested list of finite numbers as a float64 array (of `ndim` dimensions when given)."""
-        try:
-            a = np.array(value, dtype=np.float64)
-        except (TypeError, ValueError) as err:
-            raise CheckpointError(f"{self.source}: {name} is not an array of numbers: {err}") from err
-        if ndim is not None and a.ndim != ndim:
-            raise CheckpointError(f"{self.source}: {name} has shape {a.shape}, expected {ndim} dimension(s)")
-        if not np.all(np.isfinite(a)):
-            raise CheckpointError(f"{self.source}: {name} has non-finite values")
-        return a
-
-    def search(self, doc: Mapping[str, Any]) -> SearchSnapshot:
-        told = []
-        for k, attempt in enumerate(self.get(doc, "told", list, "search.")):
-            where = f"search.told[{k}]."
-            if not isinstance(attempt, dict):
-                raise CheckpointError(f"{self.source}: {where[:-1]} must be an object, got {attempt!r:.80}")
-            features = self.floats(self.get(attempt, "features", list, where), f"{where}features", 1)
-            reward = self.number(attempt, "reward_mm", where)
-            if reward is None:
-                raise CheckpointError(f"{self.source}: {where}reward_mm must be a number, got null")
-            told.append((features, reward))
-        phase_name = self.get(doc, "phase", str, "search.")
-        try:
-            phase = Phase(phase_name)
-        except ValueError as err:
-            raise CheckpointError(
-                f"{self.source}: search.phase must be one of {[p.value for p in Phase]}, got {phase_name!r}"
-            ) from err
-        best_doc = self.get(doc, "best_features", (list, type(None)), "search.")
-        best = None if best_doc is None else self.floats(best_doc, "search.best_features", 1)
-        best_reward = self.number(doc, "best_reward_mm", "search.")
-        n_exploration = self.count(doc, "n_exploration", "search.")
-        n_exploitation = self.count(doc, "n_exploitation", "search.")
-        if n_exploration + n_exploitation != len(told):
-            raise CheckpointError(
-                f"{self.source}: search counts {n_exploration} exploration + {n_exploitation} exploitation "
-                f"attempts, but {len(told)} were told"
-            )
-        return SearchSnapshot(
-            tuple(told),
-            phase,
-            best,
-            -math.inf if best_reward is None else best_reward,
-            self.number(doc, "sigma", "search."),
-            n_exploration,
-            n_exploitation,
-        )
-
-    def segment(self, doc: Any, k: int) -> SegmentDigest:
-        where = f"segments[{k}]."
-        if not isinstance(doc, dict):
-            raise CheckpointError(f"{self.source}: {where[:-1]} must be an object, got {doc!r:.80}")
-        digest = self.get(doc, "digest", str, where)
-        if len(digest) != _DIGEST_HEX or any(ch not in "0123456789abcdef" for ch in digest):
-            raise CheckpointError(
-                f"{self.source}: {where}digest must be {_DIGEST_HEX} hex digits, got {digest!r}"
-            )
-        return SegmentDigest(self.get(doc, "label", str, where), self.count(doc, "n_samples", where), digest)
+def _array(value: Any, name: str) -> FloatArray:
+    """A nested list of numbers (checked by the schema) as a float64 array; a ragged one is refused."""
+    try:
+        return np.array(value, dtype=np.float64)
+    except ValueError as err:
+        raise CheckpointError(f"{name} is not a rectangular array of numbers: {err}") from err
 
 
 __all__ = [
     "FORMAT_VERSION",
     "RNG_NAMES",
+    "SCHEMA",
     "Checkpoint",
     "CheckpointError",
     "SearchSnapshot",

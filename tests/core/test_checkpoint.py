@@ -11,10 +11,11 @@ import json
 from collections.abc import Callable
 from typing import Any
 
+import jsonschema
 import numpy as np
 import pytest
 
-from g2p.checkpoint import Checkpoint, CheckpointError, capture, restore
+from g2p.checkpoint import SCHEMA, Checkpoint, CheckpointError, capture, restore
 from g2p.experiments import TreadmillRun
 from g2p.learner import Learner, LearnerConfig
 from g2p.limit_cycle import LimitCycleConfig
@@ -161,21 +162,21 @@ def checkpoint_json() -> str:
     [
         (_set("kind", "g2p.inverse_map"), r"not a treadmill checkpoint \(kind 'g2p.inverse_map'"),
         (_set("format_version", 2), "format_version 2 is not supported"),
-        (_set("rng_states", _DELETE), "rng_states is missing"),
-        (_set("search.told.1.reward_mm", _DELETE), r"search.told\[1\].reward_mm is missing"),
-        (_set("attempt", True), "attempt must be int, got True"),
+        (_set("rng_states", _DELETE), "the document: 'rng_states' is a required property"),
+        (_set("search.told.1.reward_mm", _DELETE), r"search.told\[1\]: 'reward_mm' is a required property"),
+        (_set("attempt", True), "attempt: True is not of type 'integer'"),
         (_set("attempt", 2), "attempt is 2 but the search was told 3 attempts"),
         (_set("inverse_map.w_out", [[0.0] * 15] * 2), r"w_out has shape \(2, 15\), expected \(3, 15\)"),
-        (_set("inverse_map.b_out", [0.0, "x", 1.0]), "inverse_map.b_out is not an array of numbers"),
+        (_set("inverse_map.b_out", [0.0, "x", 1.0]), r"inverse_map.b_out\[1\]: 'x' is not valid under any"),
         (_set("validation_mask.n", 5), r"validation_mask holds \d+ bytes, expected 1 for n = 5"),
         (_set("validation_mask.packbits_base64", "@@@"), "validation_mask.packbits_base64 is not base64"),
         (_set("rng_states.search.bit_generator", "MT19937"), "rng_states.search is not a PCG64 state"),
         (_set("search.told.0.features", [0.5] * 9), r"feature vectors of different lengths \[9, 10\]"),
-        (_set("search.phase", "walking"), "search.phase must be one of"),
-        (_set("search.best_reward_mm", float("inf")), "search.best_reward_mm must be finite"),
+        (_set("search.phase", "walking"), r"search.phase: 'walking' is not one of \['exploration'"),
+        (_set("search.best_reward_mm", float("inf")), "not JSON: Infinity is not a JSON number"),
         (_set("search.n_exploitation", 5), "search counts 2 exploration \\+ 5 exploitation attempts, but 3"),
         (_set("segments.0.n_samples", 10), r"validation_mask covers \d+ samples, the segments hold \d+"),
-        (_set("segments.4.digest", "xyz"), r"segments\[4\].digest must be 16 hex digits"),
+        (_set("segments.4.digest", "xyz"), r"segments\[4\].digest: 'xyz' does not match"),
         (_set("refinements", 5), "5 dataset segments cannot hold babbling and 5 refinements"),
     ],
 )
@@ -191,3 +192,15 @@ def test_bad_checkpoints_are_refused_with_the_source_and_key(
 def test_text_that_is_not_json_is_refused() -> None:
     with pytest.raises(CheckpointError, match=r"^event 3: not JSON"):
         Checkpoint.from_json('{"kind": ', "event 3")
+
+
+def test_a_number_beyond_float64_is_refused_rather_than_read_as_infinity(checkpoint_json: str) -> None:
+    doc = json.loads(checkpoint_json)
+    doc["search"]["best_reward_mm"] = 12345.5
+    text = json.dumps(doc).replace("12345.5", "1e400")
+    with pytest.raises(CheckpointError, match=r"^event 3: not JSON: 1e400 is out of the range of a float64"):
+        Checkpoint.from_json(text, "event 3")
+
+
+def test_the_schema_is_a_valid_json_schema() -> None:
+    jsonschema.Draft202012Validator.check_schema(SCHEMA)
