@@ -3,7 +3,7 @@
     scripts/with-env python benchmarks/bench_two_hosts.py [faults] [placement] [rediscovery] [walltime] [soak]
         [--soak-rig-min 60]
 
-Runs on the two-host bench (g2p_netbench: two network namespaces joined by a
+Runs on two hosts (g2p_twohost: two network namespaces joined by a
 user-space link with delay, loss and partitions; needs root). The rig side runs ROS 2 Jazzy with the
 recorder beside it, the learner runs on this session's distribution, every process the installed
 executable.
@@ -45,8 +45,8 @@ from g2p.bags.dataset import RunData, load_run
 from g2p.bags.recover import recover_bag
 from g2p.plant import NOMINAL_TICK_HZ
 from g2p.safety import BASELINE_ACTIVATION
-from g2p_netbench.bench import TwoHostBench
-from g2p_netbench.graph import HostProcess, TwoHostGraph, ros_params
+from g2p_twohost.graph import HostProcess, TwoHostGraph, ros_params
+from g2p_twohost.hosts import TwoHosts
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -89,10 +89,10 @@ def published(log: str) -> int:
 
 
 class Run:
-    """One learning run on a bench: rig (sim) and recorder on the rig host, the learner on the other."""
+    """One learning run on two hosts: rig (sim) and recorder on the rig host, the learner on the other."""
 
-    def __init__(self, bench: TwoHostBench, workdir: Path, run_id: str, params: dict[str, str], mode: str):
-        self.g = TwoHostGraph(bench, ROOT, workdir, run_id)
+    def __init__(self, hosts: TwoHosts, workdir: Path, run_id: str, params: dict[str, str], mode: str):
+        self.g = TwoHostGraph(hosts, ROOT, workdir, run_id)
         self.sim_args = [*NS, "-p", f"time_mode:={mode}"]
         self.learn_args = [*NS, "-p", "recorder_node:=recorder", *ros_params(params)]
         if mode == "fast":
@@ -168,19 +168,19 @@ def fault_row(
 def _partition(seconds: float) -> Any:
     """A fault: cut the link `seconds` (s), one second into the second attempt."""
 
-    def act(bench: TwoHostBench, run: Run) -> float:
+    def act(hosts: TwoHosts, run: Run) -> float:
         run.learner.wait_for_attempt(1)
         time.sleep(1.0)
         t = time.time()
-        bench.partition()
+        hosts.partition()
         time.sleep(seconds)
-        bench.restore()
+        hosts.restore()
         return t
 
     return act
 
 
-def _restart_rig(bench: TwoHostBench, run: Run) -> float:
+def _restart_rig(hosts: TwoHosts, run: Run) -> float:
     run.learner.wait_for_attempt(1)
     time.sleep(1.0)
     t = time.time()
@@ -190,7 +190,7 @@ def _restart_rig(bench: TwoHostBench, run: Run) -> float:
     return t
 
 
-def _kill_learner(bench: TwoHostBench, run: Run) -> float:
+def _kill_learner(hosts: TwoHosts, run: Run) -> float:
     run.learner.wait_for_attempt(2)
     time.sleep(1.0)
     t = time.time()
@@ -199,14 +199,14 @@ def _kill_learner(bench: TwoHostBench, run: Run) -> float:
     return t
 
 
-def _kill_recorder(bench: TwoHostBench, run: Run) -> float:
+def _kill_recorder(hosts: TwoHosts, run: Run) -> float:
     run.learner.wait_for_attempt(2)
     run.recorder.stop(signal.SIGKILL)
     return time.time()
 
 
-def _impair(bench: TwoHostBench, run: Run) -> None:
-    bench.impair(**IMPAIRED)
+def _impair(hosts: TwoHosts, run: Run) -> None:
+    hosts.impair(**IMPAIRED)
 
 
 FAULTS: list[tuple[str, Any, dict[str, str]]] = [
@@ -223,9 +223,9 @@ def faults(workdir: Path) -> list[dict[str, Any]]:
     """One realtime run per fault, and a clean one for the extra wall time."""
 
     def bench_run(k: int, action: Any, params: dict[str, str]) -> tuple[Run, dict[str, Any], float | None]:
-        with TwoHostBench() as bench:
-            run = Run(bench, workdir / f"fault{k}", f"fault{k}", params, "realtime")
-            t = action(bench, run) if action is not None else None
+        with TwoHosts() as hosts:
+            run = Run(hosts, workdir / f"fault{k}", f"fault{k}", params, "realtime")
+            t = action(hosts, run) if action is not None else None
             return run, run.finish(run.resumed), t
 
     _, clean, _ = bench_run(0, None, REALTIME)
@@ -254,9 +254,9 @@ def soak(workdir: Path, rig_minutes: float, seed: int = 0) -> dict[str, Any]:
     }
     rng = random.Random(seed)
     partitions: list[float] = []
-    with TwoHostBench() as bench:
-        bench.impair(**IMPAIRED)
-        run = Run(bench, workdir / "soak", "soak", params, "fast")
+    with TwoHosts() as hosts:
+        hosts.impair(**IMPAIRED)
+        run = Run(hosts, workdir / "soak", "soak", params, "fast")
         run.learner.wait_for_attempt(1)
         procs = {"sim": run.sim, "recorder": run.recorder, "learner": run.learner}
         rss_start = {k: rss_mb(p.popen.pid) for k, p in procs.items()}
@@ -266,9 +266,9 @@ def soak(workdir: Path, rig_minutes: float, seed: int = 0) -> dict[str, Any]:
         def cut() -> None:
             while not stop.wait(rng.uniform(20.0, 40.0)):
                 seconds = rng.uniform(1.0, 5.0)
-                bench.partition()
+                hosts.partition()
                 time.sleep(seconds)
-                bench.restore()
+                hosts.restore()
                 partitions.append(seconds)
 
         def watch_memory() -> None:  # the last reading before the learner exits
@@ -321,10 +321,10 @@ def walltime(workdir: Path) -> dict[str, float]:
     )
     out["one_host_s"] = round(time.monotonic() - start, 1)
     for name, impairment in (("two_hosts_clean_s", None), ("two_hosts_impaired_s", IMPAIRED)):
-        with TwoHostBench() as bench:
+        with TwoHosts() as hosts:
             if impairment:
-                bench.impair(**impairment)
-            g = TwoHostGraph(bench, ROOT, workdir / name, name)
+                hosts.impair(**impairment)
+            g = TwoHostGraph(hosts, ROOT, workdir / name, name)
             rig = g.bringup("rig")
             start = time.monotonic()
             ws = g.bringup("ws")
@@ -341,9 +341,9 @@ def _messages_after(listener: HostProcess, t: float) -> list[float]:
 
 
 def _rediscovery_once(workdir: Path, name: str, partition_s: float) -> dict[str, Any]:
-    with TwoHostBench() as bench:
-        g = TwoHostGraph(bench, ROOT, workdir / f"rediscovery-{name.replace(' ', '-')}", "probe")
-        peers = {"rig": bench.ws_ip, "ws": bench.rig_ip}
+    with TwoHosts() as hosts:
+        g = TwoHostGraph(hosts, ROOT, workdir / f"rediscovery-{name.replace(' ', '-')}", "probe")
+        peers = {"rig": hosts.ws_ip, "ws": hosts.rig_ip}
         envs = {
             h: {}
             if name == "SUBNET"
@@ -353,10 +353,10 @@ def _rediscovery_once(workdir: Path, name: str, partition_s: float) -> dict[str,
         talker = g.python("rig", PROBE, "talk", extra_env=envs["rig"])
         listener = g.python("ws", PROBE, "listen", extra_env=envs["ws"])
         listener.wait_for("the first message", 120.0, lambda: bool(_messages_after(listener, 0.0)))
-        bench.partition()
+        hosts.partition()
         time.sleep(partition_s)
         healed = time.time()
-        bench.restore()
+        hosts.restore()
         listener.wait_for(
             "a message after the partition", 120.0, lambda: bool(_messages_after(listener, healed))
         )
@@ -376,15 +376,15 @@ def rediscovery(workdir: Path, partition_s: float = 30.0) -> list[dict[str, Any]
 
 
 def _placement_once(workdir: Path, where: Any, partition_s: float) -> dict[str, Any]:
-    with TwoHostBench() as bench:
-        g = TwoHostGraph(bench, ROOT, workdir / f"recorder-{where}", f"recorder-{where}")
+    with TwoHosts() as hosts:
+        g = TwoHostGraph(hosts, ROOT, workdir / f"recorder-{where}", f"recorder-{where}")
         sim = g.node("rig", "g2p_sim", "sim", *NS, "-p", "time_mode:=realtime")
         recorder = g.node(where, "g2p_recorder", "record", *NS, "-p", f"run_id:={g.run_id}")
         recorder.wait_for("recording the rig", 120.0, lambda: "/leg/joint_states" in recorder.log())
         time.sleep(5.0)
-        bench.partition()
+        hosts.partition()
         time.sleep(partition_s)
-        bench.restore()
+        hosts.restore()
         time.sleep(10.0)
         sim.stop()
         recorder.stop()

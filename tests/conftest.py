@@ -57,13 +57,13 @@ def _stop_leftover_processes() -> Iterator[None]:
 
 
 @pytest.fixture
-def two_host_bench() -> Iterator[Any]:
-    """A rig and a workstation network namespace joined by a clean link (g2p_netbench), torn down after
+def two_hosts() -> Iterator[Any]:
+    """A rig and a workstation network namespace joined by a clean link (g2p_twohost), torn down after
     the test; skipped, with the reason, where namespaces cannot be made (not root)."""
-    from g2p_netbench.bench import TwoHostBench, available  # only the tests that ask for a bench
+    from g2p_twohost.hosts import TwoHosts, available  # only the tests that ask for two hosts
 
     reason = available()
     if reason is not None:
         pytest.skip(reason)
-    with TwoHostBench() as bench:
-        yield bench
+    with TwoHosts() as hosts:
+        yield hosts

@@ -1,8 +1,8 @@
 """The graph on two hosts over a bad network: the rig (ROS 2 Jazzy, with the recorder beside it) in one
-network namespace, the learner in another, joined by the two_host_bench's impairable link (g2p_netbench).
+network namespace, the learner in another, joined by the two_hosts fixture's impairable link (g2p_twohost).
 
 Each test is a user's run through the installed executables: `bringup --host rig|workstation`, or the
-nodes one by one where one of them is killed and started again. DDS traffic stays inside the two_host_bench's
+nodes one by one where one of them is killed and started again. DDS traffic stays inside the fixture's
 namespaces (UDPv4 on its TUN link only).
 """
 
@@ -21,8 +21,8 @@ from g2p.bags.reader import BagReader
 from g2p.bags.resume import resume_point
 from g2p.bags.ticks import header_stamp_ns
 from g2p.safety import BASELINE_ACTIVATION
-from g2p_netbench.bench import TwoHostBench
-from g2p_netbench.graph import HostProcess, TwoHostGraph, ros_params, set_args
+from g2p_twohost.graph import HostProcess, TwoHostGraph, ros_params, set_args
+from g2p_twohost.hosts import TwoHosts
 from tests.commands import console_script
 from tests.nodes.rosproc import executable
 from tests.system.launched import Stopped, assert_every_tick_recorded, assert_stopped_cleanly
@@ -59,8 +59,8 @@ REALTIME_RUN = {
 }
 
 
-def graph(two_host_bench: TwoHostBench, tmp_path: Path, run_id: str = "two-hosts") -> TwoHostGraph:
-    return TwoHostGraph(two_host_bench, ROOT, tmp_path, run_id)
+def graph(two_hosts: TwoHosts, tmp_path: Path, run_id: str = "two-hosts") -> TwoHostGraph:
+    return TwoHostGraph(two_hosts, ROOT, tmp_path, run_id)
 
 
 def attempt_ends(run: RunData) -> list[int]:
@@ -154,12 +154,12 @@ def learn_two_hosts(g: TwoHostGraph, rig: str, settings: dict[str, str]) -> tupl
 
 
 def test_a_seeded_run_over_an_impaired_link_equals_the_run_over_loopback(
-    two_host_bench: TwoHostBench, tmp_path: Path
+    two_hosts: TwoHosts, tmp_path: Path
 ) -> None:
     here = one_host_run(tmp_path, "loopback")
     # Two hosts: 20 ms +- 10 ms one way and 2 % loss, both ways.
-    two_host_bench.impair(delay_ms=20.0, jitter_ms=10.0, loss=0.02)
-    g = graph(two_host_bench, tmp_path)
+    two_hosts.impair(delay_ms=20.0, jitter_ms=10.0, loss=0.02)
+    g = graph(two_hosts, tmp_path)
     rig_side, workstation = learn_two_hosts(g, "sim", COMPARED_RUN)
     assert workstation.wait(600) == 0, workstation.log()
     assert rig_side.stop() == 0, rig_side.log()
@@ -183,27 +183,27 @@ def test_a_seeded_run_over_an_impaired_link_equals_the_run_over_loopback(
     rig_log = (tmp_path / "log" / "runs" / g.run_id / "sim.log").read_text()
     assert len(there.ticks.recording) == published_ticks(rig_log)
     # The traffic crossed the link (and some of it was lost on the way and resent).
-    counters = two_host_bench.counters()
+    counters = two_hosts.counters()
     for direction in ("rig_to_ws", "ws_to_rig"):
         assert counters[direction]["forwarded_packets"] > 1000
         assert counters[direction]["dropped_loss_packets"] > 0
 
 
 def test_a_partition_during_an_attempt_retries_it_once_the_link_returns(
-    two_host_bench: TwoHostBench, tmp_path: Path
+    two_hosts: TwoHosts, tmp_path: Path
 ) -> None:
-    g = graph(two_host_bench, tmp_path)
+    g = graph(two_hosts, tmp_path)
     rig_side, workstation = learn_two_hosts(g, "sim_realtime", REALTIME_RUN)
     workstation.wait_for_attempt(1)
     time.sleep(1.0)  # attempt 2 plays (4 cycles, about 4 s)
     cut = time.time()
-    two_host_bench.partition()
+    two_hosts.partition()
     # Longer than the rest of the sequence: the rig ends it and holds baseline before the link returns.
     time.sleep(5.0)
     # The link carries packets again from somewhere inside restore() on: the learner may see the rig and
     # retry before the call returns (measured: a retry's first tick 42 ms before the return).
     healed = time.time()
-    two_host_bench.restore()
+    two_hosts.restore()
     assert workstation.wait(300) == 0, workstation.log()
     assert rig_side.stop() == 0, rig_side.log()
 
@@ -243,9 +243,9 @@ def test_a_partition_during_an_attempt_retries_it_once_the_link_returns(
 
 
 def test_a_partition_longer_than_the_limit_ends_the_run_cleanly_with_how_to_resume(
-    two_host_bench: TwoHostBench, tmp_path: Path
+    two_hosts: TwoHosts, tmp_path: Path
 ) -> None:
-    g = graph(two_host_bench, tmp_path)
+    g = graph(two_hosts, tmp_path)
     # The workstation first: it waits for the rig's side and says so.
     workstation = g.bringup("ws", "--rig", "sim", *set_args({**RUN, "rig_lost_limit_s": "4.0"}, "learner"))
     workstation.wait_for(
@@ -253,9 +253,9 @@ def test_a_partition_longer_than_the_limit_ends_the_run_cleanly_with_how_to_resu
     )
     rig_side = g.bringup("rig", "--rig", "sim")
     workstation.wait_for_attempt(1)
-    two_host_bench.partition()
+    two_hosts.partition()
     code = workstation.wait(120)
-    two_host_bench.restore()
+    two_hosts.restore()
     assert code == 1
     assert "learn --resume" in workstation.log()
     assert rig_side.stop() == 0, rig_side.log()
@@ -265,11 +265,9 @@ def test_a_partition_longer_than_the_limit_ends_the_run_cleanly_with_how_to_resu
     assert resume_point(g.bag).checkpoint.attempt == done[-1]
 
 
-def test_sigint_to_both_hosts_at_once_stops_every_node_cleanly(
-    two_host_bench: TwoHostBench, tmp_path: Path
-) -> None:
+def test_sigint_to_both_hosts_at_once_stops_every_node_cleanly(two_hosts: TwoHosts, tmp_path: Path) -> None:
     # As `ros2 launch` on each host stops its nodes (tests/system/test_stop.py on one host).
-    g = graph(two_host_bench, tmp_path)
+    g = graph(two_hosts, tmp_path)
     sim, recorder = rig_nodes(g, "-p", "time_mode:=realtime")
     learner = g.node("ws", "g2p_learner", "learn", *learner_args(REALTIME_RUN, sim_time=False))
     learner.wait_for_attempt(1)
@@ -291,9 +289,9 @@ def test_sigint_to_both_hosts_at_once_stops_every_node_cleanly(
 
 
 def test_a_rig_killed_and_restarted_mid_run_is_waited_for_and_the_run_completes(
-    two_host_bench: TwoHostBench, tmp_path: Path
+    two_hosts: TwoHosts, tmp_path: Path
 ) -> None:
-    g = graph(two_host_bench, tmp_path)
+    g = graph(two_hosts, tmp_path)
     sim, recorder = rig_nodes(g, "-p", "time_mode:=realtime")
     learner = g.node("ws", "g2p_learner", "learn", *learner_args(REALTIME_RUN, sim_time=False))
     learner.wait_for_attempt(1)
@@ -310,10 +308,10 @@ def test_a_rig_killed_and_restarted_mid_run_is_waited_for_and_the_run_completes(
 
 
 def test_a_learner_killed_during_exploitation_resumes_bit_for_bit_from_the_bag(
-    two_host_bench: TwoHostBench, tmp_path: Path
+    two_hosts: TwoHosts, tmp_path: Path
 ) -> None:
     uninterrupted = one_host_run(tmp_path, "reference")  # the answer
-    g = graph(two_host_bench, tmp_path)
+    g = graph(two_hosts, tmp_path)
     # A fast rig slowed to 3x real time, so that the kill falls inside an attempt.
     sim, recorder = rig_nodes(g, "-p", "time_mode:=fast", "-p", "rig.fast_max_real_time_factor:=3.0")
     learn_args = learner_args(COMPARED_RUN, sim_time=True)
@@ -355,9 +353,9 @@ def test_a_learner_killed_during_exploitation_resumes_bit_for_bit_from_the_bag(
 
 
 def test_a_recorder_killed_mid_run_leaves_a_recoverable_bag_and_an_undisturbed_run(
-    two_host_bench: TwoHostBench, tmp_path: Path
+    two_hosts: TwoHosts, tmp_path: Path
 ) -> None:
-    g = graph(two_host_bench, tmp_path)
+    g = graph(two_hosts, tmp_path)
     sim, recorder = rig_nodes(g, "-p", "time_mode:=fast", "-p", "rig.fast_max_real_time_factor:=5.0")
     learner = g.node("ws", "g2p_learner", "learn", *learner_args(RUN, sim_time=True))
     learner.wait_for_attempt(2)

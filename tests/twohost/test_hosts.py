@@ -1,4 +1,4 @@
-"""The two-host bench, tested with real UDP datagrams between its namespaces (udp_probe.py in each).
+"""The two-host hosts, tested with real UDP datagrams between its namespaces (udp_probe.py in each).
 
 Rates are modest and tolerances leave room for a loaded 2-core VM: the forwarder's hold times are exact by
 construction, so lower bounds are tight, while upper bounds allow for scheduling delays on the way.
@@ -19,10 +19,10 @@ from typing import Any
 
 import pytest
 
-from g2p_netbench.bench import (
+from g2p_twohost.hosts import (
     NETNS_DIR,
-    BenchError,
-    TwoHostBench,
+    TwoHostError,
+    TwoHosts,
     _pid_alive,
     available,
     cleanup_stale,
@@ -49,9 +49,9 @@ def report(capsys: pytest.CaptureFixture[str]) -> Iterator[Any]:
     yield emit
 
 
-def start(bench: TwoHostBench, host: str, *args: str) -> subprocess.Popen[str]:
+def start(hosts: TwoHosts, host: str, *args: str) -> subprocess.Popen[str]:
     """Start udp_probe.py in ``host``; for recv/echo, return once it has bound its socket."""
-    proc = bench.popen(host, [*PROBE, *args], stdout=subprocess.PIPE, text=True)  # type: ignore[arg-type]
+    proc = hosts.popen(host, [*PROBE, *args], stdout=subprocess.PIPE, text=True)  # type: ignore[arg-type]
     if args[0] in ("recv", "echo"):
         ready, _, _ = select.select([proc.stdout], [], [], 20)
         line = proc.stdout.readline() if ready else ""  # type: ignore[union-attr]
@@ -66,32 +66,32 @@ def result(proc: subprocess.Popen[str], timeout: float = 60) -> dict[str, Any]:
     return json.loads(out.strip().splitlines()[-1])
 
 
-def send(bench: TwoHostBench, host: str, to: str, count: int, rate: float, size: int = 64) -> dict[str, Any]:
+def send(hosts: TwoHosts, host: str, to: str, count: int, rate: float, size: int = 64) -> dict[str, Any]:
     args = ["--to", to, "--port", str(PORT), "--count", str(count), "--rate", str(rate), "--size", str(size)]
-    return result(start(bench, host, "send", *args))
+    return result(start(hosts, host, "send", *args))
 
 
-def test_clean_link_both_ways(two_host_bench: TwoHostBench) -> None:
-    bench = two_host_bench
-    assert bench.rig_ip != bench.ws_ip and bench.rig_ns != bench.ws_ns
+def test_clean_link_both_ways(two_hosts: TwoHosts) -> None:
+    hosts = two_hosts
+    assert hosts.rig_ip != hosts.ws_ip and hosts.rig_ns != hosts.ws_ns
     for src, dst in (("ws", "rig"), ("rig", "ws")):
-        rx = start(bench, dst, "recv", "--port", str(PORT), "--count", "100", "--idle", "2")
-        sent = send(bench, src, bench.ip(dst), 100, 200)
+        rx = start(hosts, dst, "recv", "--port", str(PORT), "--count", "100", "--idle", "2")
+        sent = send(hosts, src, hosts.ip(dst), 100, 200)
         got = result(rx)
         assert sent["sent"] == 100 and got["received"] == 100
-    c = bench.counters()
+    c = hosts.counters()
     assert c["ws_to_rig"]["forwarded_packets"] == 100 and c["rig_to_ws"]["forwarded_packets"] == 100
     # 64-byte payload + 8 UDP + 20 IP header bytes.
     assert c["ws_to_rig"]["forwarded_bytes"] == 100 * 92
 
 
-def test_delay_and_jitter(two_host_bench: TwoHostBench, report: Any) -> None:
-    bench = two_host_bench
-    bench.impair(delay_ms=20, jitter_ms=10)
-    bench.reset_counters()
+def test_delay_and_jitter(two_hosts: TwoHosts, report: Any) -> None:
+    hosts = two_hosts
+    hosts.impair(delay_ms=20, jitter_ms=10)
+    hosts.reset_counters()
     n = 500
-    rx = start(bench, "rig", "recv", "--port", str(PORT), "--count", str(n), "--idle", "2")
-    sent = send(bench, "ws", bench.rig_ip, n, 100)
+    rx = start(hosts, "rig", "recv", "--port", str(PORT), "--count", str(n), "--idle", "2")
+    sent = send(hosts, "ws", hosts.rig_ip, n, 100)
     got = result(rx)
     assert got["received"] == n == sent["sent"]
     one_way = sorted((recv - snd) / 1e6 for _, snd, recv, _ in got["records"])
@@ -113,16 +113,16 @@ def test_delay_and_jitter(two_host_bench: TwoHostBench, report: Any) -> None:
     seqs = [seq for seq, *_ in got["records"]]
     assert seqs != sorted(seqs), "with ±10 ms jitter at 10 ms spacing packets reorder (netem semantics)"
 
-    hold = bench.counters()["ws_to_rig"]
+    hold = hosts.counters()["ws_to_rig"]
     assert hold["hold_ms"]["count"] == n and hold["reordered_packets"] > 0
     assert hold["hold_ms"]["min"] >= 10.0 and hold["hold_ms"]["max"] <= 30.0 + MARGIN_MS
     assert abs(hold["hold_ms"]["mean"] - 20.0) < 2.0
     report(f"forwarder hold times: {hold['hold_ms']}, reordered {hold['reordered_packets']}")
 
     # Round trip: two independent 20±10 ms legs, so 40 ms mean within [20, 60] ms.
-    echo = start(bench, "rig", "echo", "--port", str(PORT + 1))
-    rtt_args = f"--to {bench.rig_ip} --port {PORT + 1} --count 100 --rate 20".split()
-    rtt = result(start(bench, "ws", "rtt", *rtt_args))
+    echo = start(hosts, "rig", "echo", "--port", str(PORT + 1))
+    rtt_args = f"--to {hosts.rig_ip} --port {PORT + 1} --count 100 --rate 20".split()
+    rtt = result(start(hosts, "ws", "rtt", *rtt_args))
     echo.terminate()
     assert rtt["lost"] == 0
     rtts = sorted(rtt["rtt_ms"])
@@ -134,22 +134,22 @@ def test_delay_and_jitter(two_host_bench: TwoHostBench, report: Any) -> None:
     assert abs(statistics.fmean(rtts) - 40.0) < 5.0
 
 
-def test_loss_matches_binomial_and_counters(two_host_bench: TwoHostBench, report: Any) -> None:
-    bench = two_host_bench
+def test_loss_matches_binomial_and_counters(two_hosts: TwoHosts, report: Any) -> None:
+    hosts = two_hosts
     p, n = 0.02, 5000
-    bench.impair(loss=p, direction="ws_to_rig")
-    bench.reset_counters()
-    kernel_before = bench.link_stats("ws")["tx"]["dropped"]
-    rx = start(bench, "rig", "recv", "--port", str(PORT), "--count", str(n), "--idle", "3")
-    sent = send(bench, "ws", bench.rig_ip, n, 1000, size=200)
+    hosts.impair(loss=p, direction="ws_to_rig")
+    hosts.reset_counters()
+    kernel_before = hosts.link_stats("ws")["tx"]["dropped"]
+    rx = start(hosts, "rig", "recv", "--port", str(PORT), "--count", str(n), "--idle", "3")
+    sent = send(hosts, "ws", hosts.rig_ip, n, 1000, size=200)
     got = result(rx)
     assert sent["sent"] == n and sent["errors"] == 0
     lost = n - got["received"]
     sigma = math.sqrt(n * p * (1 - p))
     report(f"loss 2 %: {lost} of {n} lost ({lost / n:.2%}); expected {n * p:.0f} ± {sigma:.1f} (1 sigma)")
     assert abs(lost - n * p) <= 4 * sigma
-    c = bench.counters()["ws_to_rig"]
-    kernel_drops = bench.link_stats("ws")["tx"]["dropped"] - kernel_before  # forwarder too slow: expect 0
+    c = hosts.counters()["ws_to_rig"]
+    kernel_drops = hosts.link_stats("ws")["tx"]["dropped"] - kernel_before  # forwarder too slow: expect 0
     assert c["forwarded_packets"] == got["received"]
     assert c["dropped_loss_packets"] + kernel_drops == lost
     assert c["dropped_partition_packets"] == 0 and c["dropped_overflow_packets"] == 0
@@ -157,17 +157,17 @@ def test_loss_matches_binomial_and_counters(two_host_bench: TwoHostBench, report
     assert len({seq for seq, *_ in got["records"]}) == got["received"]
 
 
-def test_partition_stops_everything_and_restore_resumes(two_host_bench: TwoHostBench, report: Any) -> None:
-    bench = two_host_bench
+def test_partition_stops_everything_and_restore_resumes(two_hosts: TwoHosts, report: Any) -> None:
+    hosts = two_hosts
     rate, n = 200, 1000  # a 5 s stream; cut from about 1 s to 2.5 s
-    rx = start(bench, "rig", "recv", "--port", str(PORT), "--duration", "30", "--idle", "3")
-    tx = start(bench, "ws", "send", *f"--to {bench.rig_ip} --port {PORT} --count {n} --rate {rate}".split())
+    rx = start(hosts, "rig", "recv", "--port", str(PORT), "--duration", "30", "--idle", "3")
+    tx = start(hosts, "ws", "send", *f"--to {hosts.rig_ip} --port {PORT} --count {n} --rate {rate}".split())
     time.sleep(1.0)
-    bench.partition()
+    hosts.partition()
     cut_ns = time.monotonic_ns()  # the forwarder has answered: the cut is in force
     time.sleep(1.5)
     heal_ns = time.monotonic_ns()
-    bench.restore()
+    hosts.restore()
     sent, got = result(tx), result(rx)
     assert sent["sent"] == n
     received = {seq: recv for seq, _, recv, _ in got["records"]}
@@ -182,36 +182,36 @@ def test_partition_stops_everything_and_restore_resumes(two_host_bench: TwoHostB
         f"resumed {resume_s * 1e3:.1f} ms after restore"
     )
     assert resume_s < 0.5
-    c = bench.counters()["ws_to_rig"]
+    c = hosts.counters()["ws_to_rig"]
     assert c["dropped_partition_packets"] + c["forwarded_packets"] == n
     assert c["dropped_partition_packets"] >= len(during)
 
     # Both ways: rig -> ws is cut too, and packets held for delay when the cut comes are lost.
-    bench.reset_counters()
-    bench.partition()
-    rx = start(bench, "ws", "recv", "--port", str(PORT), "--duration", "3", "--idle", "3")
-    send(bench, "rig", bench.ws_ip, 50, 500)
+    hosts.reset_counters()
+    hosts.partition()
+    rx = start(hosts, "ws", "recv", "--port", str(PORT), "--duration", "3", "--idle", "3")
+    send(hosts, "rig", hosts.ws_ip, 50, 500)
     assert result(rx)["received"] == 0
-    assert bench.counters()["rig_to_ws"]["dropped_partition_packets"] == 50
-    bench.restore()
-    bench.impair(delay_ms=500)
-    bench.reset_counters()
-    rx = start(bench, "ws", "recv", "--port", str(PORT), "--duration", "3", "--idle", "3")
-    send(bench, "rig", bench.ws_ip, 20, 200)  # 0.1 s of sending: all still held when the cut comes
-    bench.partition()
-    assert bench.counters()["rig_to_ws"]["held_packets"] > 0
+    assert hosts.counters()["rig_to_ws"]["dropped_partition_packets"] == 50
+    hosts.restore()
+    hosts.impair(delay_ms=500)
+    hosts.reset_counters()
+    rx = start(hosts, "ws", "recv", "--port", str(PORT), "--duration", "3", "--idle", "3")
+    send(hosts, "rig", hosts.ws_ip, 20, 200)  # 0.1 s of sending: all still held when the cut comes
+    hosts.partition()
+    assert hosts.counters()["rig_to_ws"]["held_packets"] > 0
     assert result(rx)["received"] == 0
-    c = bench.counters()["rig_to_ws"]
+    c = hosts.counters()["rig_to_ws"]
     assert c["dropped_partition_packets"] == 20 and c["held_packets"] == 0
 
 
-def test_multicast_crosses_the_link(two_host_bench: TwoHostBench) -> None:
-    bench = two_host_bench
+def test_multicast_crosses_the_link(two_hosts: TwoHosts) -> None:
+    hosts = two_hosts
     for src, dst in (("ws", "rig"), ("rig", "ws")):
-        rx_args = f"--group {GROUP} --iface {bench.ip(dst)} --port 7400 --count 50 --idle 2".split()
-        rx = start(bench, dst, "recv", *rx_args)
-        tx_args = f"--to {GROUP} --iface {bench.ip(src)} --port 7400 --count 50 --rate 100".split()
-        tx = start(bench, src, "send", *tx_args)
+        rx_args = f"--group {GROUP} --iface {hosts.ip(dst)} --port 7400 --count 50 --idle 2".split()
+        rx = start(hosts, dst, "recv", *rx_args)
+        tx_args = f"--to {GROUP} --iface {hosts.ip(src)} --port 7400 --count 50 --rate 100".split()
+        tx = start(hosts, src, "send", *tx_args)
         assert result(tx)["sent"] == 50
         assert result(rx)["received"] == 50, f"multicast {src} -> {dst} did not arrive"
 
@@ -224,44 +224,44 @@ def _assert_gone(names: list[str], pids: list[int]) -> None:
     assert not alive, f"processes {alive} remain"
 
 
-# A process that ignores SIGTERM, so only the bench's SIGKILL ends it.
+# A process that ignores SIGTERM, so only the hosts' SIGKILL ends it.
 STUBBORN = "import signal, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); print('up', flush=True); " + (
     "time.sleep(600)"
 )
 
 
-def _populate(bench: TwoHostBench) -> tuple[list[int], subprocess.Popen[str]]:
+def _populate(hosts: TwoHosts) -> tuple[list[int], subprocess.Popen[str]]:
     """Tracked and untracked processes in both namespaces, one of which ignores SIGTERM."""
-    procs = [bench.popen(host, ["sleep", "600"]) for host in ("rig", "ws")]
-    stubborn = bench.popen("rig", [sys.executable, "-c", STUBBORN], stdout=subprocess.PIPE, text=True)
+    procs = [hosts.popen(host, ["sleep", "600"]) for host in ("rig", "ws")]
+    stubborn = hosts.popen("rig", [sys.executable, "-c", STUBBORN], stdout=subprocess.PIPE, text=True)
     assert stubborn.stdout is not None and stubborn.stdout.readline() == "up\n"  # SIG_IGN is in place
-    # Not started through the bench: found by `ip netns pids`.
-    untracked = subprocess.Popen(["ip", "netns", "exec", bench.ws_ns, "sleep", "600"], text=True)
+    # Not started through the hosts: found by `ip netns pids`.
+    untracked = subprocess.Popen(["ip", "netns", "exec", hosts.ws_ns, "sleep", "600"], text=True)
     deadline = time.monotonic() + 10
-    while untracked.pid not in bench.pids("ws") and time.monotonic() < deadline:
+    while untracked.pid not in hosts.pids("ws") and time.monotonic() < deadline:
         time.sleep(0.05)
     pids = [p.pid for p in [*procs, stubborn, untracked]]
-    assert set(pids) <= set(bench.pids("rig")) | set(bench.pids("ws"))
+    assert set(pids) <= set(hosts.pids("rig")) | set(hosts.pids("ws"))
     return pids, untracked
 
 
 @needs_bench
 def test_exit_removes_namespaces_and_processes() -> None:
-    with TwoHostBench() as bench:
-        names = [bench.rig_ns, bench.ws_ns]
-        pids, untracked = _populate(bench)
-        pids.append(bench.forwarder.pid)  # type: ignore[union-attr]
-    untracked.wait(timeout=10)  # our child, killed by the bench; reap it
+    with TwoHosts() as hosts:
+        names = [hosts.rig_ns, hosts.ws_ns]
+        pids, untracked = _populate(hosts)
+        pids.append(hosts.forwarder.pid)  # type: ignore[union-attr]
+    untracked.wait(timeout=10)  # our child, killed by the hosts; reap it
     _assert_gone(names, pids)
 
 
 @needs_bench
 @pytest.mark.parametrize("error", [RuntimeError, KeyboardInterrupt])
 def test_exception_inside_with_removes_everything(error: type[BaseException]) -> None:
-    with pytest.raises(error, match="test failure"), TwoHostBench() as bench:
-        names = [bench.rig_ns, bench.ws_ns]
-        pids, untracked = _populate(bench)
-        pids.append(bench.forwarder.pid)  # type: ignore[union-attr]
+    with pytest.raises(error, match="test failure"), TwoHosts() as hosts:
+        names = [hosts.rig_ns, hosts.ws_ns]
+        pids, untracked = _populate(hosts)
+        pids.append(hosts.forwarder.pid)  # type: ignore[union-attr]
         raise error("test failure")
     untracked.wait(timeout=10)
     _assert_gone(names, pids)
@@ -270,38 +270,38 @@ def test_exception_inside_with_removes_everything(error: type[BaseException]) ->
 @needs_bench
 @pytest.mark.parametrize("how", ["SIGTERM", "stdin EOF"])
 def test_forwarder_exits_cleanly(how: str) -> None:
-    with TwoHostBench() as bench:
-        fwd = bench.forwarder
+    with TwoHosts() as hosts:
+        fwd = hosts.forwarder
         assert fwd is not None and fwd.stdin is not None
         if how == "SIGTERM":
             fwd.terminate()
         else:
             fwd.stdin.close()
-        assert fwd.wait(timeout=10) == 0, bench.forwarder_log()
+        assert fwd.wait(timeout=10) == 0, hosts.forwarder_log()
         # Its TUN devices went with it.
-        for ns in (bench.rig_ns, bench.ws_ns):
+        for ns in (hosts.rig_ns, hosts.ws_ns):
             links = subprocess.run(["ip", "-n", ns, "-o", "link"], capture_output=True, text=True).stdout
             assert "g2p" not in links, links
 
 
-def test_bad_commands_are_refused_clearly(two_host_bench: TwoHostBench) -> None:
-    with pytest.raises(BenchError, match=r"loss=2\.0 out of range"):
-        two_host_bench.impair(loss=2.0)
-    with pytest.raises(BenchError, match="unknown cmd 'shake'"):
-        two_host_bench.command({"cmd": "shake"})
+def test_bad_commands_are_refused_clearly(two_hosts: TwoHosts) -> None:
+    with pytest.raises(TwoHostError, match=r"loss=2\.0 out of range"):
+        two_hosts.impair(loss=2.0)
+    with pytest.raises(TwoHostError, match="unknown cmd 'shake'"):
+        two_hosts.command({"cmd": "shake"})
     with pytest.raises(ValueError, match="host must be 'rig' or 'ws'"):
-        two_host_bench.ns("server")  # type: ignore[arg-type]
-    assert two_host_bench.counters()["ws_to_rig"]["loss"] == 0.0  # the refused setting was not applied
+        two_hosts.ns("server")  # type: ignore[arg-type]
+    assert two_hosts.counters()["ws_to_rig"]["loss"] == 0.0  # the refused setting was not applied
 
 
 @needs_bench
-def test_concurrent_benches_are_separate() -> None:
-    with TwoHostBench() as a, TwoHostBench() as b:
+def test_concurrent_pairs_of_hosts_are_separate() -> None:
+    with TwoHosts() as a, TwoHosts() as b:
         assert {a.rig_ns, a.ws_ns}.isdisjoint({b.rig_ns, b.ws_ns})
         assert a.subnet != b.subnet
         rx = start(b, "rig", "recv", "--port", str(PORT), "--duration", "2", "--idle", "2")
         send(a, "ws", a.rig_ip, 20, 100)
-        assert result(rx)["received"] == 0, "a packet crossed from one bench to another"
+        assert result(rx)["received"] == 0, "a packet crossed from one pair of hosts to another"
         assert a.counters()["ws_to_rig"]["forwarded_packets"] == 20
 
 
@@ -325,19 +325,19 @@ def test_stale_namespaces_of_dead_owners_are_removed() -> None:
 
 
 @pytest.mark.slow
-def test_forwarder_throughput(two_host_bench: TwoHostBench, report: Any) -> None:
+def test_forwarder_throughput(two_hosts: TwoHosts, report: Any) -> None:
     """Figures, not a timed assertion: how many ~1500-byte packets/s the forwarder carries here."""
-    bench = two_host_bench
+    hosts = two_hosts
     size = 1400  # payload; + 28 header bytes = 1428-byte IP packets, under the 1500-byte MTU
     for delay_ms, rate, count in ((0, 2000, 4000), (0, 5000, 10000), (20, 5000, 10000), (0, 0, 20000)):
-        bench.impair(delay_ms=delay_ms)
-        bench.reset_counters()
-        kernel_before = bench.link_stats("ws")["tx"]["dropped"]
-        rx = start(bench, "rig", "recv", "--port", str(PORT), "--count", str(count), "--idle", "2")
-        sent = send(bench, "ws", bench.rig_ip, count, rate, size=size)
+        hosts.impair(delay_ms=delay_ms)
+        hosts.reset_counters()
+        kernel_before = hosts.link_stats("ws")["tx"]["dropped"]
+        rx = start(hosts, "rig", "recv", "--port", str(PORT), "--count", str(count), "--idle", "2")
+        sent = send(hosts, "ws", hosts.rig_ip, count, rate, size=size)
         got = result(rx)
-        c = bench.counters()["ws_to_rig"]
-        kernel_drops = bench.link_stats("ws")["tx"]["dropped"] - kernel_before
+        c = hosts.counters()["ws_to_rig"]
+        kernel_drops = hosts.link_stats("ws")["tx"]["dropped"] - kernel_before
         recs = got["records"]
         span_s = (recs[-1][2] - recs[0][2]) / 1e9 if len(recs) > 1 else float("nan")
         send_span_s = (sent["send_ns"][-1] - sent["send_ns"][0]) / 1e9

@@ -1,4 +1,4 @@
-"""A tiny UDP sender / receiver / echo / round-trip probe, run inside a bench namespace by the tests.
+"""A tiny UDP sender / receiver / echo / round-trip probe, run inside a two-host namespace by the tests.
 
 Each datagram starts with ``!QQ``: a sequence number and the sender's CLOCK_MONOTONIC time (ns) when it was
 sent; CLOCK_MONOTONIC is one clock per machine, shared by all network namespaces, so a receiver in another

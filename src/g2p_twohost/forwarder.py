@@ -1,6 +1,6 @@
 """Join two TUN devices in two network namespaces and forward IP packets between them, impaired.
 
-Run by path or as ``python -m g2p_netbench.forwarder``; it needs root (CAP_NET_ADMIN) and only the standard
+Run by path or as ``python -m g2p_twohost.forwarder``; it needs root (CAP_NET_ADMIN) and only the standard
 library::
 
     forwarder.py --rig-netns /run/netns/A --rig-tun g2prig --ws-netns /run/netns/B --ws-tun g2pws --seed 1
@@ -8,7 +8,7 @@ library::
 It creates TUN device ``--rig-tun`` inside the rig namespace and ``--ws-tun`` inside the workstation
 namespace (the devices never exist in the caller's namespace), prints one ``{"ready": true, ...}`` line on
 stdout, then forwards every packet read from one device to the other. The caller gives the devices addresses
-and brings them up (see bench.py). The devices vanish when the forwarder exits.
+and brings them up (see hosts.py). The devices vanish when the forwarder exits.
 
 Impairments, per direction (``ws_to_rig``, ``rig_to_ws``):
 

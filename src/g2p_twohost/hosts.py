@@ -1,4 +1,4 @@
-"""`TwoHostBench`: a "rig" and a "workstation" network namespace joined by an impairable TUN link.
+"""`TwoHosts`: a "rig" and a "workstation" network namespace joined by an impairable TUN link.
 
 The link is forwarder.py, a user-space program holding one TUN device in each namespace: the kernel here has
 no netem, so delay, jitter, loss and partitions come from it. Each namespace has only ``lo`` and its TUN
@@ -6,11 +6,11 @@ no netem, so delay, jitter, loss and partitions come from it. Each namespace has
 the project's Fast DDS profile is UDPv4 only). Nothing is added to the machine's own namespace: no address, no
 route, no device.
 
-    with TwoHostBench() as bench:
-        rig = bench.popen("rig", ["python", "-m", "my_rig"])
-        bench.impair(delay_ms=20, jitter_ms=10, loss=0.02)
-        bench.partition()
-        bench.restore()
+    with TwoHosts() as hosts:
+        rig = hosts.popen("rig", ["python", "-m", "my_rig"])
+        hosts.impair(delay_ms=20, jitter_ms=10, loss=0.02)
+        hosts.partition()
+        hosts.restore()
 
 On exit, and when anything fails (an exception, Ctrl-C) while it is built or used, every process in both
 namespaces is stopped (SIGTERM, then SIGKILL), the forwarder is stopped and both namespaces are deleted.
@@ -49,19 +49,19 @@ REPLY_TIMEOUT_S = 10.0  # the forwarder answers in microseconds; this only bound
 STOP_GRACE_S = 3.0  # how long processes get between SIGTERM and SIGKILL
 
 
-class BenchError(RuntimeError):
-    """Building, driving or tearing down the bench failed."""
+class TwoHostError(RuntimeError):
+    """Building, driving or tearing down the two hosts failed."""
 
 
 def _run(argv: Sequence[str], what: str | None = None) -> str:
-    """Run a command, return its stdout; raise BenchError with its stderr when it fails."""
+    """Run a command, return its stdout; raise TwoHostError with its stderr when it fails."""
     try:
         done = subprocess.run(list(argv), capture_output=True, text=True, timeout=30)
     except (OSError, subprocess.TimeoutExpired) as exc:
-        raise BenchError(f"{what or ' '.join(argv)} failed: {exc}") from exc
+        raise TwoHostError(f"{what or ' '.join(argv)} failed: {exc}") from exc
     if done.returncode != 0:
         detail = (done.stderr or done.stdout).strip()
-        raise BenchError(f"{what or ' '.join(argv)} failed (exit {done.returncode}): {detail}")
+        raise TwoHostError(f"{what or ' '.join(argv)} failed (exit {done.returncode}): {detail}")
     return done.stdout
 
 
@@ -107,7 +107,7 @@ def _delete_netns(ns: str) -> None:
 
 
 def cleanup_stale() -> list[str]:
-    """Delete bench namespaces (``g2p-rig-*``, ``g2p-ws-*``) whose owner pid is dead, and their processes.
+    """Delete two-host namespaces (``g2p-rig-*``, ``g2p-ws-*``) whose owner pid is dead, and their processes.
 
     Best effort: a namespace that cannot be deleted is left alone.
 
@@ -125,7 +125,7 @@ def cleanup_stale() -> list[str]:
             continue
         try:
             _delete_netns(name)
-        except BenchError as exc:
+        except TwoHostError as exc:
             print(f"twohost: could not remove stale namespace {name}: {exc}", file=sys.stderr)
             continue
         removed.append(name)
@@ -133,11 +133,11 @@ def cleanup_stale() -> list[str]:
 
 
 def available() -> str | None:
-    """None when benches can be built here, else why not (for pytest.skip)."""
+    """None when two hosts can be built here, else why not (for pytest.skip)."""
     if os.geteuid() != 0:
-        return "the two-host bench needs root (network namespaces, TUN devices)"
+        return "the two hosts need root (network namespaces, TUN devices)"
     if shutil.which("ip") is None:
-        return "the two-host bench needs iproute2's `ip` command"
+        return "the two hosts need iproute2's `ip` command"
     try:
         os.close(os.open("/dev/net/tun", os.O_RDWR))
     except OSError as exc:
@@ -145,20 +145,20 @@ def available() -> str | None:
     probe = f"g2p-probe-{os.getpid()}-{secrets.token_hex(3)}"
     try:
         _run(["ip", "netns", "add", probe], f"ip netns add {probe}")
-    except BenchError as exc:
+    except TwoHostError as exc:
         return str(exc)
     try:
         _run(["ip", "netns", "delete", probe], f"ip netns delete {probe}")
-    except BenchError as exc:
+    except TwoHostError as exc:
         return str(exc)
     return None
 
 
 def _claim_subnet() -> tuple[int, IO[str]]:
-    """Lock a third octet (0..254) of 10.77.X.0/24 for one bench, so concurrent benches never share a subnet.
+    """Lock a third octet (0..254) of 10.77.X.0/24 for one pair of hosts: no two pairs share a subnet.
 
-    Two benches are separate networks anyway; distinct subnets keep logs and captures unambiguous. The lock is
-    an flock on a file in /tmp, held until the bench closes (or the process dies).
+    Two pairs are separate networks anyway; distinct subnets keep logs and captures unambiguous. The lock is
+    an flock on a file in /tmp, held until the hosts close (or the process dies).
     """
     for octet in range(255):
         lock = open(LOCK_DIR / f"g2p-twohost-10.77.{octet}.lock", "w")
@@ -168,19 +168,19 @@ def _claim_subnet() -> tuple[int, IO[str]]:
             lock.close()
             continue
         return octet, lock
-    raise BenchError("no free subnet in 10.77.0.0/16 (255 benches at once?)")
+    raise TwoHostError("no free subnet in 10.77.0.0/16 (255 pairs of hosts at once?)")
 
 
-_open_benches: weakref.WeakSet[TwoHostBench] = weakref.WeakSet()
+_open_hosts: weakref.WeakSet[TwoHosts] = weakref.WeakSet()
 
 
 @atexit.register
 def _close_leftovers() -> None:
-    for bench in list(_open_benches):
-        bench.close()
+    for hosts in list(_open_hosts):
+        hosts.close()
 
 
-class TwoHostBench:
+class TwoHosts:
     """Two network namespaces, "rig" and "ws" (workstation), joined by an impairable point-to-point link.
 
     Args:
@@ -245,7 +245,7 @@ class TwoHostBench:
 
     # -- life cycle -------------------------------------------------------------------------------------
 
-    def __enter__(self) -> TwoHostBench:
+    def __enter__(self) -> TwoHosts:
         try:
             self.open()
         except BaseException:
@@ -260,7 +260,7 @@ class TwoHostBench:
 
     def open(self) -> None:
         """Build the namespaces, start the forwarder and configure both ends (``with`` calls it)."""
-        _open_benches.add(self)
+        _open_hosts.add(self)
         cleanup_stale()
         if self._requested_octet is None:
             self.third_octet, self._lock = _claim_subnet()
@@ -317,7 +317,7 @@ class TwoHostBench:
         )
         ready = self._read_reply("start")
         if not ready.get("ready"):
-            raise BenchError(f"forwarder did not get ready: {ready}")
+            raise TwoHostError(f"forwarder did not get ready: {ready}")
 
     def forwarder_log(self) -> str:
         """What the forwarder wrote on stderr so far."""
@@ -346,7 +346,7 @@ class TwoHostBench:
         for ns in self._created:
             try:
                 _delete_netns(ns)
-            except BenchError as exc:
+            except TwoHostError as exc:
                 errors.append(str(exc))
         for path in self._machine_ids:
             path.unlink(missing_ok=True)
@@ -355,9 +355,9 @@ class TwoHostBench:
         if self._lock is not None:
             self._lock.close()  # releases the flock
         self._closed = True
-        _open_benches.discard(self)
+        _open_hosts.discard(self)
         if errors:
-            raise BenchError("; ".join(errors))
+            raise TwoHostError("; ".join(errors))
 
     def _stop_forwarder(self) -> None:
         proc = self._forwarder
@@ -389,13 +389,13 @@ class TwoHostBench:
     def popen(
         self, host: Host, argv: Sequence[str], env: dict[str, str] | None = None, **kw: Any
     ) -> subprocess.Popen[Any]:
-        """Start ``argv`` inside ``host``'s namespace (``ip netns exec``); stopped when the bench closes.
+        """Start ``argv`` inside ``host``'s namespace (``ip netns exec``); stopped when the hosts close.
 
         ``ip netns exec`` execs the command, so the returned Popen's pid is the command's own. ``env`` None
         inherits this process's environment; other keywords go to subprocess.Popen.
         """
         if self._closed or self._forwarder is None:
-            raise BenchError("popen on a bench that is not open")
+            raise TwoHostError("popen on two hosts that are not open")
         # Each host has its own machine id, as two computers do: Fast DDS 3 takes participants with the
         # same /etc/machine-id for one host's and then only talks to them on whitelisted local addresses.
         # `ip netns exec` gives the command a mount namespace of its own, so the bind mount stays in it.
@@ -429,7 +429,7 @@ class TwoHostBench:
         line = proc.stdout.readline() if ready else ""
         if not line:
             proc.poll()
-            raise BenchError(
+            raise TwoHostError(
                 f"forwarder gave no reply to {what} (exit status {proc.returncode}); its log:\n"
                 + self.forwarder_log()
             )
@@ -440,16 +440,16 @@ class TwoHostBench:
         """Send one control command to the forwarder (see forwarder.py) and return its reply."""
         proc = self._forwarder
         if proc is None or self._closed:
-            raise BenchError("the bench is not open")
+            raise TwoHostError("the two hosts are not open")
         with self._ctl:
             try:
                 proc.stdin.write(json.dumps(cmd) + "\n")  # type: ignore[union-attr]
                 proc.stdin.flush()  # type: ignore[union-attr]
             except OSError as exc:
-                raise BenchError(f"forwarder is gone ({exc}); its log:\n{self.forwarder_log()}") from exc
+                raise TwoHostError(f"forwarder is gone ({exc}); its log:\n{self.forwarder_log()}") from exc
             reply = self._read_reply(json.dumps(cmd))
         if not reply.get("ok"):
-            raise BenchError(f"forwarder refused {cmd}: {reply.get('error')}")
+            raise TwoHostError(f"forwarder refused {cmd}: {reply.get('error')}")
         return reply
 
     def impair(

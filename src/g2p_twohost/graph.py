@@ -1,9 +1,9 @@
-"""The G2P graph of a checkout on a two-host bench, started as a user starts it on a Pi and a workstation.
+"""The G2P graph of a checkout on two hosts, started as a user starts it on a Pi and a workstation.
 
 The rig side runs ROS 2 Jazzy (the Raspberry Pi's distribution) from the checkout's Jazzy environment; the
 workstation side runs the distribution of the calling process (G2P_ROS_DISTRO). Each side's processes are
 the installed executables, run through the checkout's scripts/with-env in their host's namespace with the
-two-host DDS profile (UDPv4 only, on the bench's link), either through `bringup --host ...` or one node
+two-host DDS profile (UDPv4 only, on the two hosts' link), either through `bringup --host ...` or one node
 at a time (to kill and restart one).
 """
 
@@ -17,14 +17,14 @@ import time
 from pathlib import Path
 from typing import IO
 
-from g2p_netbench.bench import STOP_GRACE_S, BenchError, Host, TwoHostBench
+from g2p_twohost.hosts import STOP_GRACE_S, Host, TwoHostError, TwoHosts
 
 RIG_DISTRO = "jazzy"
 ATTEMPT_LINE = re.compile(r"^attempt +(\d+) ", re.M)
 
 
 class HostProcess:
-    """A process of one host of the bench, its output in a log file."""
+    """A process of one of the two hosts, its output in a log file."""
 
     def __init__(self, popen: subprocess.Popen[bytes], log_path: Path, log: IO[bytes]) -> None:
         self.popen = popen
@@ -47,9 +47,9 @@ class HostProcess:
         deadline = time.monotonic() + condition_s
         while not check():  # type: ignore[operator]
             if self.popen.poll() is not None:
-                raise BenchError(f"exited ({self.popen.returncode}) before {what}:\n{self.log()[-3000:]}")
+                raise TwoHostError(f"exited ({self.popen.returncode}) before {what}:\n{self.log()[-3000:]}")
             if time.monotonic() > deadline:
-                raise BenchError(f"no {what} within {condition_s:g} s:\n{self.log()[-3000:]}")
+                raise TwoHostError(f"no {what} within {condition_s:g} s:\n{self.log()[-3000:]}")
             time.sleep(0.05)
 
     def wait_for_attempt(self, number: int, timeout_s: float = 300.0) -> None:
@@ -73,21 +73,21 @@ class HostProcess:
         try:
             return self.popen.wait(timeout_s)
         except subprocess.TimeoutExpired as err:
-            raise BenchError(f"still running after {timeout_s:g} s:\n{self.log()[-3000:]}") from err
+            raise TwoHostError(f"still running after {timeout_s:g} s:\n{self.log()[-3000:]}") from err
 
 
 class TwoHostGraph:
-    """Starts the graph's processes on a bench: the rig host's on Jazzy, the workstation's on this session's.
+    """Starts the graph on two hosts: the rig host's processes on Jazzy, the workstation's on this session's.
 
     Args:
-        bench: the bench (open).
+        hosts: the two hosts (open).
         checkout: the project's checkout, bootstrapped (its scripts/ set up each side's environment).
         workdir: working directory of every process (bags/ and log/ go there).
         run_id: the run's id (the rig host's recorder names the bag after it).
     """
 
-    def __init__(self, bench: TwoHostBench, checkout: Path, workdir: Path, run_id: str) -> None:
-        self.bench = bench
+    def __init__(self, hosts: TwoHosts, checkout: Path, workdir: Path, run_id: str) -> None:
+        self.hosts = hosts
         self._with_env = checkout / "scripts" / "with-env"
         self._ros2_run = checkout / "scripts" / "ros2-run"
         self.workdir = workdir
@@ -100,7 +100,7 @@ class TwoHostGraph:
         self._n += 1
         log_path = self.workdir / f"{self._n:02d}-{host}-{name}.log"
         log = open(log_path, "wb")
-        popen = self.bench.popen(host, argv, env=env, cwd=self.workdir, stdout=log, stderr=subprocess.STDOUT)
+        popen = self.hosts.popen(host, argv, env=env, cwd=self.workdir, stdout=log, stderr=subprocess.STDOUT)
         return HostProcess(popen, log_path, log)
 
     def _environment(self, host: Host) -> dict[str, str]:
@@ -134,8 +134,8 @@ class TwoHostGraph:
         return self._in_ros(host, name, command, env, env.pop("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET"))
 
     def bringup(self, host: Host, *args: str) -> HostProcess:
-        """`bringup --host rig|workstation` on `host`, over the bench's link (bringup writes the profile)."""
-        interface = self.bench.rig_tun if host == "rig" else self.bench.ws_tun
+        """`bringup --host rig|workstation` on `host`, over the hosts' link (bringup writes the profile)."""
+        interface = self.hosts.rig_tun if host == "rig" else self.hosts.ws_tun
         side = "rig" if host == "rig" else "workstation"
         options = [
             "--host",
@@ -167,7 +167,7 @@ class TwoHostGraph:
         """
         path = self.workdir / f"fastdds-{host}.xml"
         if not path.exists():
-            address = self.bench.ip(host)
+            address = self.hosts.ip(host)
             make = f"from g2p_bringup.dds import two_host_profile; print(two_host_profile({address!r}))"
             done = subprocess.run(
                 [str(self._with_env), "python", "-c", make],

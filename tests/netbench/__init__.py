@@ -1,1 +1,0 @@
-"""A two-host network bench on one machine: two network namespaces joined by an impairable TUN link."""
