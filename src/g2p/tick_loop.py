@@ -7,6 +7,11 @@ tick each (on-demand pacing), else the latest command through the `ActivationGat
 [baseline, 1], baseline once commands stop). A cancelled job, a fault and a stop drop to baseline from the
 coming tick on. At most one job (sequence or trajectory) or one reset is in progress at a time.
 
+Every activation then passes the rig's safety envelope (g2p.envelope: soft joint limits, the motors'
+thermal budget), from the previous tick's measurements, whoever sent it. A limit that trips (the plant's
+`fault`, or a winding estimated past its cut-out) trips the loop: the job ends with the reason, the motors
+stay at baseline and commands and jobs are refused until a reset puts the rig right.
+
 Every sample's time is put on the stamp grid (whole nanoseconds, g2p.plant.on_stamp_grid): in-process
 and over ROS, a learner gets the same floats. Every tick, reset sample and idle heartbeat goes to `emit`
 in order; a job or reset is done only once `emit`'s receiver calls the tick's `then`, so a ROS rig
@@ -29,6 +34,7 @@ from numpy.typing import NDArray
 
 from g2p.closed_loop import TrajectoryTracker
 from g2p.config import require
+from g2p.envelope import EnvelopeAction, EnvelopeConfig, SafetyEnvelope
 from g2p.plant import Plant, TickSample, on_stamp_grid
 from g2p.safety import BASELINE_ACTIVATION, ActivationGate, check_activation_sequence
 
@@ -39,6 +45,10 @@ FloatArray = NDArray[np.float64]
 IDLE_HEARTBEAT_PERIOD_S = 1.0
 # The error of a job (and the message of a reset) that the loop's stop ended.
 STOPPED = "rig stopped"
+
+
+class RigTripped(RuntimeError):
+    """A limit of the rig tripped (the message says which): the rig holds baseline until a reset."""
 
 
 class Pacing(enum.Enum):
@@ -61,11 +71,13 @@ class TickLoopConfig:
         baseline_activation: activation always applied at least (dimensionless, the paper's 15%).
         fast_max_real_time_factor: in fast simulation (on-demand pacing), the most simulated seconds per
             wall second (dimensionless; 0 = unlimited), so that subscribers such as the recorder keep up.
+        envelope: the safety envelope's rules (g2p.envelope).
     """
 
     watchdog_ticks: int = 3
     baseline_activation: float = BASELINE_ACTIVATION
     fast_max_real_time_factor: float = 60.0
+    envelope: EnvelopeConfig = field(default_factory=EnvelopeConfig)
 
     def __post_init__(self) -> None:
         require(self.watchdog_ticks >= 1, "watchdog_ticks", f"must be >= 1, got {self.watchdog_ticks}")
@@ -138,12 +150,17 @@ class Tick:
         idles_after: the loop may not tick again soon (on-demand pacing with nothing more to play, a
             reset, the last tick at stop): the rig's time stands still after this one.
         then: to call once the tick is delivered (or cannot be): it ends the job or reset it finished.
+        envelope: what the safety envelope did to the tick's activation (None for a reset sample or a
+            heartbeat).
+        trip: why the rig is tripped after this tick ("" when it is not).
     """
 
     sample: TickSample | None
     number: int
     idles_after: bool
     then: Callable[[], None] | None = None
+    envelope: EnvelopeAction | None = None
+    trip: str = ""
 
 
 class CommandOutcome(enum.Enum):
@@ -155,6 +172,8 @@ class CommandOutcome(enum.Enum):
     """Not 3 finite numbers: nothing changed."""
     IGNORED = "ignored"
     """A sequence or trajectory plays: commands wait until it ends."""
+    TRIPPED = "tripped"
+    """The rig is tripped: commands wait for a reset."""
 
 
 @dataclass
@@ -164,6 +183,9 @@ class LoopCounters:
     ticks: int = 0
     ignored_commands: int = 0
     faults: int = 0
+    envelope_ticks: int = 0
+    """Ticks whose activation the safety envelope changed."""
+    trips: int = 0
 
 
 class TickLoop:
@@ -191,7 +213,11 @@ class TickLoop:
         self.pacing = pacing
         self.config = config
         self.gate = ActivationGate(config.watchdog_ticks, config.baseline_activation)
+        self.envelope = SafetyEnvelope(config.envelope, config.baseline_activation)
         self.counters = LoopCounters()
+        self.trip = ""
+        """Why the rig is tripped ("" when it is not): set by a limit, cleared by a successful reset."""
+        self._last: TickSample | None = None  # the last sample: the envelope's measurements
         self._emit = emit if emit is not None else _deliver
         self._on_fault = on_fault
         self._cv = threading.Condition()
@@ -245,9 +271,11 @@ class TickLoop:
             self._thread.join(timeout=5.0)
             if self._thread.is_alive():  # the plant blocks: it must not be stepped from here
                 return True
-        sample = self._step(self.gate.stop())
+        baseline = self.gate.stop()  # the last tick is at baseline, whatever the envelope would add
+        action = self.envelope.limit(baseline, None, None)  # baseline stays baseline: nothing to limit
+        sample = _on_grid(self.plant.step(action.applied))
         self.counters.ticks += 1
-        self._emit(Tick(sample, self.counters.ticks, True))
+        self._emit(Tick(sample, self.counters.ticks, True, envelope=action, trip=self.trip))
         return True
 
     # What clients ask for --------------------------------------------------------------------------
@@ -258,6 +286,11 @@ class TickLoop:
             if self._job is not None:
                 self.counters.ignored_commands += 1
                 return CommandOutcome.IGNORED
+            if self.trip:  # a lockstep client still gets its tick, at baseline
+                if self.pacing is Pacing.ON_DEMAND:
+                    self._lockstep.append(self.gate.baseline_activation)
+                    self._cv.notify_all()
+                return CommandOutcome.TRIPPED
             applied = self.gate.command(activation)
             if applied is None:
                 return CommandOutcome.REJECTED
@@ -279,6 +312,9 @@ class TickLoop:
         with self._cv:
             if not self._running and not job.done.is_set():
                 job.error = "rig is not running"
+                job.done.set()
+            if self.trip and not job.done.is_set():
+                job.error = f"rig tripped: {self.trip}; reset it first"
                 job.done.set()
             if not job.done.is_set():
                 self._job = job
@@ -331,17 +367,46 @@ class TickLoop:
             if reset is not None:
                 self._do_reset(reset)
                 return True
-            sample = self._step(activation)
+            sample, action = self._step(activation)
             self._pace(sample.t_s)
             self.counters.ticks += 1
             then = self._advance(job, sample) if job is not None else None
-            self._emit(Tick(sample, self.counters.ticks, idles_after, then))
+            trip = self._check_trip()
+            self._emit(Tick(sample, self.counters.ticks, idles_after, then, action, self.trip))
+            if trip:
+                self._fault(RigTripped(trip), job)
         except Exception as err:  # the plant (or the delivery) failed: baseline, fail the job, report
             self._fault(err, job)
         return True
 
-    def _step(self, activation: FloatArray) -> TickSample:
-        return _on_grid(self.plant.step(activation))
+    def _step(self, activation: FloatArray) -> tuple[TickSample, EnvelopeAction]:
+        """One tick of the plant with `activation` through the envelope."""
+        last = None if self.trip else self._last  # a tripped rig holds plain baseline
+        action = self.envelope.limit(
+            activation,
+            None if last is None else last.position_rad,
+            None if last is None else last.velocity_rad_s,
+        )
+        sample = _on_grid(self.plant.step(action.applied))
+        self.envelope.observe(sample.t_s, sample.activation)
+        self._last = sample
+        if action.acted:
+            self.counters.envelope_ticks += 1
+        return sample, action
+
+    def _check_trip(self) -> str:
+        """A new trip's reason after a tick (the plant's, or the envelope's estimate), else ""."""
+        if self.trip:
+            return ""
+        trip = getattr(self.plant, "fault", "") or self.envelope.trip
+        if trip:
+            with self._cv:
+                self.trip = trip
+                self.counters.trips += 1
+                self.gate.stop()
+                if self.pacing is Pacing.ON_DEMAND:  # one more tick: the rig is seen at baseline
+                    self._lockstep.append(self.gate.baseline_activation)
+        return trip
 
     def _has_work(self) -> bool:
         return self._job is not None or self._reset is not None or bool(self._lockstep)
@@ -358,6 +423,10 @@ class TickLoop:
                 return None, self.gate.stop()
         if job is not None:  # cancelled: end the job now, baseline from this tick on
             self._finish(job)
+            return None, self.gate.stop()
+        if self.trip:
+            if self._lockstep:
+                self._lockstep.popleft()
             return None, self.gate.stop()
         if self._lockstep:
             return None, self._lockstep.popleft()
@@ -398,7 +467,13 @@ class TickLoop:
             req.done.set()
             raise
         self.gate.stop()
-        req.success, req.message = True, "at rest"
+        self._last = sample
+        self.envelope.observe(sample.t_s, sample.activation)  # the time a tripped rig took to cool
+        was, self.trip = self.trip, getattr(self.plant, "fault", "") or self.envelope.trip
+        if self.trip:
+            req.success, req.message = False, f"rig still tripped: {self.trip}"
+        else:
+            req.success, req.message = True, "at rest" if not was else f"at rest, put right after: {was}"
         self._emit(Tick(sample, self.counters.ticks, True, req.done.set))
 
     def _fault(self, err: Exception, job: Job | None) -> None:

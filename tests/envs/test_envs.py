@@ -14,9 +14,9 @@ from gymnasium.utils import seeding
 from gymnasium.utils.env_checker import check_env
 
 import g2p.envs
+from g2p.envelope import SafetyEnvelope
 from g2p.envs import TRACK_ID, TREADMILL_ID, TrackEnv, TreadmillEnv
 from g2p.limit_cycle import LimitCycleConfig, cycle_kinematics
-from g2p.plant import run_sequence
 from g2p.safety import BASELINE_ACTIVATION
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, MujocoLeg, MujocoLegConfig
 
@@ -97,19 +97,25 @@ def test_treadmill_reward_is_the_belt_travel_the_plant_reports() -> None:
         energy += info["reward_energy"]
     assert truncated
 
+    # The same plant, each tick's activation through the rig's safety envelope as the env's rig applies it.
     plant = MujocoLeg(config)
-    rest = plant.reset_episode(seeding.np_random(seed)[0], env.reset_noise_scale)
-    recording = run_sequence(plant, np.repeat(actions.astype(np.float64), frame_skip, axis=0))
-    travel = recording.belt_mm[-1] - rest.belt_mm
-    used = float(np.sum(recording.energy_j[-1] - rest.energy_j))
+    rest = last = plant.reset_episode(seeding.np_random(seed)[0], env.reset_noise_scale)
+    envelope = SafetyEnvelope()
+    envelope.observe(rest.t_s, rest.activation)
+    for a in np.repeat(actions.astype(np.float64), frame_skip, axis=0):
+        applied = envelope.limit(a, last.position_rad, last.velocity_rad_s).applied
+        last = plant.step(applied)
+        envelope.observe(last.t_s, last.activation)
+    travel = last.belt_mm - rest.belt_mm
+    used = float(np.sum(last.energy_j - rest.energy_j))
     assert abs(travel) > 0.1  # the episode moved the belt: the comparison is not 0 == 0
     assert forward == pytest.approx(travel, rel=1e-12, abs=1e-12)
     assert info["belt_travel_mm"] == pytest.approx(travel, rel=1e-12, abs=1e-12)
     assert energy == pytest.approx(-0.01 * used, rel=1e-12)
     assert info["energy_used_j"] == pytest.approx(used, rel=1e-12)
-    # The observation ends with what the rig applied: the activations, clamped at the baseline.
-    obs = env._observation()
-    np.testing.assert_allclose(obs[5:], np.maximum(actions[-1], BASELINE_ACTIVATION))
+    # The observation ends with what the rig applied: the activations, clamped at the baseline, enveloped.
+    np.testing.assert_array_equal(env._observation()[5:], last.activation)
+    np.testing.assert_array_equal(last.activation, np.maximum(applied, BASELINE_ACTIVATION))
 
 
 def test_track_reward_and_observation_follow_the_cycle() -> None:

@@ -2,8 +2,13 @@
 
 The conventions are those of Gymnasium's MuJoCo v5 environments: the observation is what the rig's sensors
 read, the action is held for `frame_skip` ticks, the reward returns its terms in `info`, an episode
-truncates (never terminates) after a fixed number of ticks, `reset(seed=...)` seeds everything random,
-`reset_noise_scale` perturbs the resting posture, and `render()` returns an RGB array.
+truncates after a fixed number of ticks, `reset(seed=...)` seeds everything random, `reset_noise_scale`
+perturbs the resting posture, and `render()` returns an RGB array.
+
+The rig's limits hold as on every rig: on the simulated rig in-process, each tick's action passes the
+rig's safety envelope (g2p.envelope), as the tick loop of a ROS rig passes it. An episode **terminates**
+when a limit trips (a winding's cut-out, a snapped or derailed tendon: g2p.sim.limits), as a real rig's
+operator would stop it; `info["trip"]` says why, and the next `reset` puts the rig right.
 
 Subclasses (g2p.envs.treadmill, g2p.envs.track) add to the observation and define the reward.
 """
@@ -17,6 +22,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
+from g2p.envelope import SafetyEnvelope
 from g2p.limit_cycle import LimitCycleConfig
 from g2p.plant import N_JOINTS, N_MOTORS, FloatArray, Plant, TickSample
 from g2p.sim import MujocoLeg, MujocoLegConfig
@@ -102,6 +108,8 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         self.ticks = 0
         """Ticks played in the current episode."""
         self._last: TickSample | None = None
+        self._envelope: SafetyEnvelope | None = None  # the in-process rig's; a ROS rig applies its own
+        self._trip = ""
 
     @property
     def dt(self) -> float:
@@ -129,9 +137,12 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         self._on_reset(options)
         if isinstance(self.plant, MujocoLeg):
             self._last = self.plant.reset_episode(self.np_random, self.reset_noise_scale)
+            self._envelope = SafetyEnvelope()  # the windings start at ambient, as reset_episode's
+            self._envelope.observe(self._last.t_s, self._last.activation)
         else:
             self._last = self.plant.reset()
         self.ticks = 0
+        self._trip = ""
         return self._observation(), self._info({})
 
     def step(
@@ -145,21 +156,26 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         """
         if self._last is None:
             raise RuntimeError("call reset() before step()")
-        if self.ticks >= self.episode_ticks:
-            raise RuntimeError("the episode is over (truncated); call reset()")
+        if self.ticks >= self.episode_ticks or self._trip:
+            raise RuntimeError("the episode is over (truncated or terminated); call reset()")
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (N_MOTORS,) or not np.all(np.isfinite(a)):
             raise ValueError(f"action: expected 3 finite activations, got {np.asarray(action).tolist()}")
-        a = np.clip(a, 0.0, 1.0)
+        commanded = np.clip(a, 0.0, 1.0)
         first = self.ticks
         samples = [self._last]
         for _ in range(self.frame_skip):
-            samples.append(self.plant.step(a))
+            samples.append(self._tick(commanded, samples[-1]))
+            if self._trip:
+                break
         self._last = samples[-1]
-        self.ticks += self.frame_skip
+        self.ticks += len(samples) - 1
         reward, terms = self._reward(samples, first)
-        truncated = self.ticks >= self.episode_ticks
-        return self._observation(), reward, False, truncated, self._info(terms)
+        truncated = self.ticks >= self.episode_ticks and not self._trip
+        info = self._info(terms)
+        if self._trip:
+            info["trip"] = self._trip
+        return self._observation(), reward, bool(self._trip), truncated, info
 
     def render(self) -> NDArray[np.uint8] | None:
         """The leg seen from its side, shape (height, width, 3) (render_mode "rgb_array"); else None."""
@@ -189,6 +205,19 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
             self.plant.close()
 
     # Internals ---------------------------------------------------------------------------------------
+    def _tick(self, commanded: FloatArray, last: TickSample) -> TickSample:
+        """One tick of `commanded` (3,), through the in-process rig's envelope (a ROS rig applies its own)."""
+        envelope = self._envelope
+        if envelope is None:
+            sample = self.plant.step(commanded)
+        else:
+            action = envelope.limit(commanded, last.position_rad, last.velocity_rad_s)
+            sample = self.plant.step(action.applied)
+            envelope.observe(sample.t_s, sample.activation)
+            self._trip = envelope.trip
+        self._trip = getattr(self.plant, "fault", "") or self._trip
+        return sample
+
     def _observation(self) -> NDArray[np.float64]:
         s = self._last
         assert s is not None

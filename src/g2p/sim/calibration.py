@@ -141,6 +141,11 @@ def _max_current() -> tuple[Callable[[mujoco.MjModel], float], Callable[[mujoco.
     return read, write
 
 
+def _numeric(name: str) -> tuple[Callable[[mujoco.MjModel], float], Callable[[mujoco.MjModel, float], None]]:
+    """A custom numeric of the model (the rig's limits, g2p.sim.limits)."""
+    return _field("numeric_data", lambda m: (int(m.numeric_adr[_id(m, mujoco.mjtObj.mjOBJ_NUMERIC, name)]),))
+
+
 _ACTUATORS = mujoco.mjtObj.mjOBJ_ACTUATOR
 _TENDONS = mujoco.mjtObj.mjOBJ_TENDON
 
@@ -271,6 +276,55 @@ def _parameters() -> tuple[LegParameter, ...]:
             0.05,
             3.0,
             _field("pair_friction", lambda m: (0, [0, 1])),
+        ),
+        p(
+            "supply_voltage_v",
+            "the motor drivers' supply voltage (V)",
+            3.0,
+            60.0,
+            _numeric("supply_voltage"),
+        ),
+        p(
+            "winding_thermal_resistance_k_per_w",
+            "each winding's thermal resistance to ambient (K/W)",
+            0.1,
+            50.0,
+            _numeric("winding_thermal_resistance"),
+        ),
+        p(
+            "winding_time_constant_s",
+            "each winding's thermal time constant (s)",
+            1.0,
+            3600.0,
+            _numeric("winding_time_constant"),
+        ),
+        p(
+            "winding_cutout_c",
+            "the drivers' thermal cut-out (deg C)",
+            40.0,
+            200.0,
+            _numeric("winding_cutout_temperature"),
+        ),
+        p(
+            "tendon_rated_tension_n",
+            "each tendon's working load (N)",
+            1.0,
+            1000.0,
+            _numeric("tendon_rated_tension"),
+        ),
+        p(
+            "tendon_breaking_tension_n",
+            "the tension at which a tendon snaps (N)",
+            1.0,
+            2000.0,
+            _numeric("tendon_breaking_tension"),
+        ),
+        p(
+            "tendon_derail_payout_m",
+            "cable a spool may pay out into its slack tendon before it derails (m)",
+            0.001,
+            0.5,
+            _numeric("tendon_derail_payout"),
         ),
         p(
             "proximal_encoder_offset_rad",

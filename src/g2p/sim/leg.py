@@ -3,7 +3,9 @@
 Each `step` is one rig tick: the clamped activations are held for a jittered tick period, the physics is
 sub-stepped within it, and the sample reads what the rig's sensors would read at the end of the tick
 (quantized encoder angles, their finite-difference velocity, the belt odometer, mean motor current and
-power over the tick, cumulative energy). See docs/SIMULATOR.md for the model and its parameters.
+power over the tick, cumulative energy). The rig's physical limits (g2p.sim.limits) act within each
+sub-step: the supply voltage caps the current, windings heat, tendons snap or derail. See docs/SIMULATOR.md
+for the model and its parameters.
 """
 
 from __future__ import annotations
@@ -14,10 +16,11 @@ from types import TracebackType
 import mujoco
 import numpy as np
 
-from g2p.plant import N_MOTORS, FloatArray, TickSample
+from g2p.plant import MOTOR_NAMES, N_MOTORS, FloatArray, TickSample
 from g2p.safety import check_activation, clamp_activation
 from g2p.sim.calibration import MAX_ENCODER_DELAY_S, LegCalibration
 from g2p.sim.config import MujocoLegConfig
+from g2p.sim.limits import COOLDOWN_HYSTERESIS_K, RigLimits, available_current_a, winding_temperature_c
 from g2p.sim.model import IntArray, LegModel, load_leg_model
 from g2p.sim.motor import electrical_power_w
 from g2p.sim.sensors import TickClock, quantize_angle
@@ -41,8 +44,11 @@ class MujocoLeg:
 
     Construction compiles the model and finds the resting posture as the rig does (baseline tension, the
     carriage lowered onto the belt, `config.settle_s` to settle); it stores that state, and every `reset`
-    returns to it exactly. The belt odometer, the energy meters and the clock run on across resets, as on
-    the rig.
+    returns to it exactly. The belt odometer, the energy meters, the windings' temperatures and the clock
+    run on across resets, as on the rig.
+
+    When a limit trips (g2p.sim.limits: a winding's cut-out, a snapped or derailed tendon), `fault` says
+    why, and the plant goes on stepping with that motor off or that tendon without force until `reset`.
 
     A calibration (g2p.sim.calibration) sets the model's physical parameters, and the sensors' own: each
     encoder reads the joint angle `encoder_delay_s` before the end of the tick plus its zero offset, then
@@ -96,6 +102,16 @@ class MujocoLeg:
         self._hist_t = np.zeros(n_hist)
         self._hist_q = np.zeros((n_hist, 2))
         self._joint_arms = self._tendon_joint_arms()
+        self.limits = RigLimits.from_model(self._model)
+        self._stiffness = np.array(self._model.tendon_stiffness[:N_MOTORS])  # restored when re-tendoned
+        self._current_hist = np.empty((self._n_sub, N_MOTORS))
+        self._winding_c = np.full(N_MOTORS, self.limits.ambient_c)
+        self._motor_on = np.ones(N_MOTORS)  # 0 for a motor its driver cut out
+        self._peak_tension_n = np.zeros(N_MOTORS)
+        self._slack_payout_m = np.zeros(N_MOTORS)  # cable paid out into each slack tendon (m)
+        self.max_slack_payout_m = np.zeros(N_MOTORS)
+        """The most cable paid out into a slack tendon since construction, per tendon (m)."""
+        self._fault = ""
 
         self._time_s = 0.0
         self._energy_j = np.zeros(N_MOTORS)
@@ -116,12 +132,15 @@ class MujocoLeg:
     def reset(self) -> TickSample:
         """Return to the resting posture (motors at baseline, belt at rest) and return a sample at rest.
 
-        The belt odometer, energy meters and clock are not reset; no time passes.
+        The belt odometer, energy meters and clock are not reset; no time passes, unless the rig tripped.
+        A tripped rig is put right first, as an operator would: its tendons back in their channels, and
+        the time a cut-out winding takes to cool 10 K below its cut-out passes (the clock advances by it).
         """
         self._require_open()
         belt_now = float(self._data.qpos[self._leg.belt_qpos])
         if np.isfinite(belt_now):
             self._belt_base_m += belt_now - self._belt_rest_m
+        self._clear_trip()
         mujoco.mj_setState(self._model, self._data, self._rest_state, _STATE)
         mujoco.mj_forward(self._model, self._data)
         self._diverged = False
@@ -132,9 +151,9 @@ class MujocoLeg:
 
         For reinforcement learning (g2p.envs): the belt odometer and the energy meters read 0 again, so that
         an episode's numbers do not depend on the ones before it (the same generator state gives the same
-        episode, bit for bit); the joint angles move by U(-noise_scale, noise_scale) rad and the joint
-        velocities by noise_scale * N(0, 1) rad/s, as in Gymnasium's MuJoCo environments; the tick jitter is
-        drawn from `rng` from now on. The clock runs on.
+        episode, bit for bit), and the windings are at ambient temperature; the joint angles move by
+        U(-noise_scale, noise_scale) rad and the joint velocities by noise_scale * N(0, 1) rad/s, as in
+        Gymnasium's MuJoCo environments; the tick jitter is drawn from `rng` from now on. The clock runs on.
 
         Args:
             rng: the generator of the perturbation and, from now on, of the tick jitter.
@@ -151,6 +170,7 @@ class MujocoLeg:
         self.reset()
         self._belt_base_m = -self._belt_rest_m
         self._energy_j[:] = 0.0
+        self._winding_c[:] = self.limits.ambient_c
         self._clock = TickClock(rng, self.config.tick_hz, self.config.tick_jitter_s)
         leg = self._leg
         if noise_scale > 0:
@@ -176,7 +196,13 @@ class MujocoLeg:
             raise SimulationError("the simulation diverged earlier; call reset() first")
         applied = clamp_activation(commanded, self.config.baseline_activation)
         model, data, n = self._model, self._data, self._n_sub
-        qpos, act, spools = self._qpos, self._act, self._spools
+        qpos, qvel, act, spools = self._qpos, self._qvel, self._act, self._spools
+        leg, limits, motor = self._leg, self.limits, self._leg.motor
+        spool_dof, applied_force = leg.spool_dof, data.qfrc_applied
+        current_hist = self._current_hist
+        peak = self._peak_tension_n
+        peak[:] = 0.0
+        payout, radius = self._slack_payout_m, motor.spool_radius_m
         period = self._clock.next_period() if period_s is None else period_s
         dt = period / n
         model.opt.timestep = dt
@@ -188,10 +214,21 @@ class MujocoLeg:
             hist_t[:-n], hist_q[:-n] = hist_t[n:], hist_q[n:]
         for k in range(n):
             # Actuator force in a step uses the activation at its start; qpos moves by dt * new qvel, so
-            # torque * spool displacement is the exact work of the step.
+            # torque * spool displacement is the exact work of the step. The actuator applies the commanded
+            # current's torque; the applied force takes off what the supply voltage (or a cut-out) denies.
             act_hist[k] = act
             spool_hist[k] = qpos[spools]
+            commanded = act * self._i_max
+            current = available_current_a(commanded, qvel[spool_dof], motor, limits.supply_voltage_v)
+            current *= self._motor_on
+            current_hist[k] = current
+            applied_force[spool_dof] = motor.kt_nm_per_a * (current - commanded)
             mujoco.mj_step(model, data)
+            np.maximum(peak, -data.qfrc_spring[spool_dof], out=peak)
+            # The cable a spool has paid out (net of what it reeled back in) since its tendon went slack:
+            # the loose loop at the spool; a taut tendon takes the loop back up.
+            slack = data.ten_length[:N_MOTORS] < 0.0
+            payout[:] = np.where(slack, np.maximum(payout - qvel[spool_dof] * (radius * dt), 0.0), 0.0)
             if delayed:
                 hist_t[k - n] = self._time_s + (k + 1) * dt
                 hist_q[k - n] = qpos[self._leg.joint_qpos]
@@ -202,12 +239,16 @@ class MujocoLeg:
                 f"the simulation diverged at t = {self._time_s + period:.4f} s; call reset()"
             )
 
-        current = act_hist * self._i_max  # (n, 3) A
+        current = current_hist  # (n, 3) A
         spool_speed = (spool_hist[1:] - spool_hist[:-1]) * (1.0 / dt)  # (n, 3) rad/s, mean over each substep
-        power = electrical_power_w(current, spool_speed, self._leg.motor)  # (n, 3) W
+        power = electrical_power_w(current, spool_speed, motor)  # (n, 3) W
         power_sum = power.sum(axis=0)
         self._energy_j += power_sum * dt
         self._time_s += period
+        peak *= 1.0 / motor.spool_radius_m  # N
+        copper_w = (current * current).sum(axis=0) * (motor.resistance_ohm / n)
+        self._winding_c = winding_temperature_c(self._winding_c, copper_w, period, limits)
+        self._check_limits()
         self._wrap_belt()
         angle = self._read_angles()
         velocity = (angle - self._prev_angle) * (1.0 / period)  # what the driver computes from encoder counts
@@ -257,6 +298,66 @@ class MujocoLeg:
         """Drop the motors to baseline and refuse further steps."""
         self._data.ctrl[:] = self._baseline
         self._closed = True
+
+    # ----------------------------------------------------------------------------------------- limits
+    @property
+    def fault(self) -> str:
+        """Why the rig is tripped ("" when it is not): see g2p.sim.limits. `reset` puts it right."""
+        return self._fault
+
+    @property
+    def winding_temperature_c(self) -> FloatArray:
+        """The windings' temperatures, shape (3,) (deg C, M0, M1, M2)."""
+        return self._winding_c.copy()
+
+    @property
+    def peak_tension_n(self) -> FloatArray:
+        """The tendons' highest tension over the sub-steps of the last tick, shape (3,) (N)."""
+        return self._peak_tension_n.copy()
+
+    def _check_limits(self) -> None:
+        """Trip on a winding past its cut-out, a tendon past its breaking tension or off its channel."""
+        limits, model = self.limits, self._model
+        trips = []
+        for i, name in enumerate(MOTOR_NAMES):
+            if self._motor_on[i] and self._winding_c[i] >= limits.winding_cutout_c:
+                self._motor_on[i] = 0.0
+                trips.append(f"{name}'s winding reached {self._winding_c[i]:.1f} degC: its driver cut out")
+            if model.tendon_stiffness[i] == 0.0:
+                continue
+            payout_m = float(self._slack_payout_m[i])
+            self.max_slack_payout_m[i] = max(self.max_slack_payout_m[i], payout_m)
+            if self._peak_tension_n[i] > limits.tendon_breaking_n:
+                trips.append(
+                    f"tendon {name} snapped at {self._peak_tension_n[i]:.0f} N "
+                    f"(breaks above {limits.tendon_breaking_n:g} N)"
+                )
+            elif payout_m > limits.tendon_derail_payout_m:
+                trips.append(
+                    f"tendon {name} left its channel: its spool paid {1000 * payout_m:.0f} mm of cable "
+                    f"into it slack (derails beyond {1000 * limits.tendon_derail_payout_m:g} mm)"
+                )
+            else:
+                continue
+            model.tendon_stiffness[i] = 0.0  # off the spool or broken: it carries no force
+        if trips and not self._fault:
+            self._fault = "; ".join(trips)
+
+    def _clear_trip(self) -> None:
+        """Put a tripped rig right: re-tendon it and let cut-out windings cool (the clock runs on)."""
+        self._model.tendon_stiffness[:N_MOTORS] = self._stiffness
+        self._slack_payout_m[:] = 0.0
+        off = self._motor_on == 0.0
+        if off.any():
+            limits = self.limits
+            above = float(np.max(self._winding_c[off])) - limits.ambient_c
+            target = limits.winding_cutout_c - COOLDOWN_HYSTERESIS_K - limits.ambient_c
+            if above > target:
+                wait_s = limits.winding_time_constant_s * math.log(above / target)
+                self._winding_c = winding_temperature_c(self._winding_c, np.zeros(N_MOTORS), wait_s, limits)
+                self._time_s += wait_s
+        self._motor_on[:] = 1.0
+        self._fault = ""
 
     def __enter__(self) -> MujocoLeg:
         return self

@@ -1,0 +1,107 @@
+"""The rig's safety envelope (g2p.envelope) and the tick loop that applies it, against known answers."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from g2p.envelope import EnvelopeConfig, SafetyEnvelope, WindingRating, first_order_temperature
+from g2p.plant import hold
+from g2p.rig import PlantRig, RigError
+from g2p.safety import BASELINE_ACTIVATION
+from g2p.sim import AIR_CARRIAGE_HEIGHT_M, MujocoLeg, MujocoLegConfig
+from g2p.tick_loop import CommandOutcome, Job, Pacing, TickLoop
+
+ONES = np.ones(3)
+
+
+def test_the_thermal_estimate_is_the_first_order_solution_of_the_regulated_current() -> None:
+    envelope = SafetyEnvelope()
+    w = WindingRating()
+    envelope.observe(0.0, np.zeros(3))
+    for k in range(1, 101):
+        envelope.observe(0.1 * k, np.array([0.0, 0.5, 1.0]))  # 0, 4 and 8 A
+    expected = w.ambient_c + np.array([0.0, 16.0, 64.0]) * w.resistance_ohm * w.thermal_resistance_k_per_w
+    expected = w.ambient_c + (expected - w.ambient_c) * (1.0 - math.exp(-10.0 / w.time_constant_s))
+    np.testing.assert_allclose(envelope.winding_c, expected, rtol=1e-12)
+    np.testing.assert_allclose(
+        first_order_temperature(np.array([80.0]), np.zeros(1), 1e9, 2.5, 60.0, 25.0), [25.0]
+    )
+
+
+def test_a_hot_motor_is_derated_toward_baseline_and_trips_only_at_its_cut_out() -> None:
+    config = EnvelopeConfig()
+    envelope = SafetyEnvelope(config)
+    midway = 0.5 * (config.derate_start_c + config.derate_full_c)
+    envelope.winding_c = np.array([25.0, midway, config.derate_full_c])
+    action = envelope.limit(ONES, None, None)
+    half = BASELINE_ACTIVATION + 0.5 * (1.0 - BASELINE_ACTIVATION)
+    np.testing.assert_allclose(action.applied, [1.0, half, BASELINE_ACTIVATION])
+    np.testing.assert_allclose(action.thermal_scale, [1.0, 0.5, 0.0])
+    assert action.acted and envelope.trip == ""
+    envelope.winding_c[0] = config.trip_c
+    assert "M0's winding" in envelope.trip
+
+
+def test_soft_limits_raise_the_antagonists_of_a_joint_flying_at_its_stop_and_scale_its_drivers() -> None:
+    config = EnvelopeConfig(soft_limits=True, scale_drivers=True, brake_activation=0.6)
+    envelope = SafetyEnvelope(config)
+    # The knee 0.2 rad from its upper stop (0), extending at 10 rad/s: M0 extends it, M2 flexes it.
+    a = np.array([0.8, 0.5, 0.2])
+    action = envelope.limit(a, np.array([0.0, -0.2]), np.array([0.0, 10.0]))
+    assert action.applied[0] < a[0]  # the driver, scaled down
+    assert action.applied[1] == a[1]  # M1 does not turn the knee
+    assert action.applied[2] > a[2]  # the antagonist, raised
+    # Far from the stops, or slow, or moving away: untouched.
+    for q, v in (([0.0, -0.9], [0.0, 3.0]), ([0.0, -0.2], [0.0, 1.0]), ([0.0, -0.2], [0.0, -5.0])):
+        assert not envelope.limit(a, np.array(q), np.array(v)).acted
+    # Nothing above baseline drives it there: the rig's own baseline is left alone.
+    assert not envelope.limit(
+        np.full(3, BASELINE_ACTIVATION), np.array([0.0, -0.2]), np.array([0.0, 10.0])
+    ).acted
+    off = SafetyEnvelope(EnvelopeConfig(soft_limits=False))
+    assert not off.limit(a, np.array([0.0, -0.2]), np.array([0.0, 10.0])).acted
+
+
+def test_garbage_at_activation_1_for_a_minute_cannot_overheat_a_motor() -> None:
+    # What `ros2 topic pub` at 1 does to a rig: one command per tick, on the rig's own loop, for two
+    # minutes: long enough for the same garbage to cut the raw plant's drivers out (in one it does not).
+    seconds = 120
+    plant = MujocoLeg(MujocoLegConfig(carriage_height_m=AIR_CARRIAGE_HEIGHT_M))
+    loop = TickLoop(plant, Pacing.ON_DEMAND)
+    loop.start(plant.reset().t_s, threaded=False)
+    hottest = 0.0
+    for _ in range(round(seconds * plant.tick_hz)):
+        assert loop.command([1.0, 1.0, 1.0]) is CommandOutcome.APPLIED
+        loop.tick()
+        hottest = max(hottest, float(np.max(plant.winding_temperature_c)))
+    assert plant.fault == "" and loop.trip == ""
+    assert hottest < plant.limits.winding_cutout_c
+    assert loop.counters.envelope_ticks > 0
+    # Raw, the same two minutes cut the drivers out.
+    raw = MujocoLeg(MujocoLegConfig(carriage_height_m=AIR_CARRIAGE_HEIGHT_M))
+    hold(raw, ONES, round(seconds * raw.tick_hz))
+    assert "cut out" in raw.fault
+
+
+def test_a_trip_ends_the_job_with_its_reason_and_holds_baseline_until_a_reset() -> None:
+    plant = MujocoLeg(MujocoLegConfig(carriage_height_m=AIR_CARRIAGE_HEIGHT_M))
+    plant.limits = replace(plant.limits, tendon_rated_n=30.0, tendon_breaking_n=40.0)
+    rig = PlantRig(plant)
+    rig.reset()
+    with pytest.raises(RigError, match="tendon M1 snapped"):
+        rig.play(np.tile([0.15, 1.0, 0.15], (78, 1)))
+    loop = rig._loop
+    assert "snapped" in loop.trip and loop.counters.trips == 1
+    job = Job(activations=np.tile([0.15, 0.3, 0.15], (5, 1)))
+    loop.play(job)
+    assert "rig tripped" in job.error and job.done.is_set()
+    assert loop.command([1.0, 1.0, 1.0]) is CommandOutcome.TRIPPED
+    loop.tick()  # a lockstep client still gets its tick, at baseline
+    rig.reset()
+    assert loop.trip == "" and plant.fault == ""
+    recording = rig.play(np.tile([0.15, 0.3, 0.15], (5, 1)))
+    np.testing.assert_allclose(recording.activation[-1], [0.15, 0.3, 0.15])
