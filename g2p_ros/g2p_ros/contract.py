@@ -20,6 +20,8 @@ RESET = "reset"
 ROBOT_DESCRIPTION = "robot_description"
 # What the rig publishes every tick.
 RIG_SAMPLE_TOPICS = (JOINT_STATES, TREADMILL, MOTOR_POWER, APPLIED_ACTIVATION)
+# What the rig's limits did each tick (g2p_interfaces/RigLimits), with SAMPLE_QOS, beside the samples.
+RIG_LIMITS = "rig_limits"
 
 # Rig samples: reliable, so a recorder loses nothing. A reliable writer drops samples its readers have not
 # acknowledged yet once its history is full, and acknowledgements come at heartbeat pace: 10,000 samples

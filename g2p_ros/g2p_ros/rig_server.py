@@ -111,7 +111,7 @@ class RigServer:
             config.diagnostics_period_ticks,
         )
         self._loop = TickLoop(plant, pacing, config, self._out.enqueue, self._fault)
-        self._last_log = {"rejected": 0.0, "ignored": 0.0, "stale": 0.0}
+        self._last_log = {"rejected": 0.0, "ignored": 0.0, "stale": 0.0, "tripped": 0.0}
         self._stale_commands = 0
         group = ReentrantCallbackGroup()
         # Commands in arrival order: their own mutually exclusive group.
@@ -197,6 +197,8 @@ class RigServer:
                 "activation_cmd ignored while a run_activations or run_trajectory goal plays "
                 f"({self._loop.counters.ignored_commands} so far)",
             )
+        elif outcome is CommandOutcome.TRIPPED:
+            self._warn("tripped", f"activation_cmd ignored: the rig is tripped ({self._loop.trip}); reset it")
         elif outcome is CommandOutcome.REJECTED:
             self._warn(
                 "rejected",
@@ -316,10 +318,15 @@ class RigServer:
         if self._on_fault is not None:
             self._on_fault(err)
 
-    def _status(self) -> dict[str, int]:
-        """/diagnostics' counters."""
+    def _status(self) -> dict[str, int | str]:
+        """/diagnostics' values: the counters, the envelope's and the trip's."""
         counters = self.counters
+        loop = self._loop
         return {
+            "trip": loop.trip,
+            "trips": loop.counters.trips,
+            "envelope_ticks": loop.counters.envelope_ticks,
+            "winding_estimate_c": " ".join(f"{t:.1f}" for t in loop.envelope.winding_c),
             "commands_accepted": counters["accepted"],
             "commands_clamped": counters["clamped"],
             "commands_rejected": counters["rejected"],

@@ -4,7 +4,7 @@ A thread of its own publishes the ticks the loop hands over (g2p.tick_loop.Tick)
 shared stamp per tick, while the loop steps the next one (MuJoCo steps without the GIL, so stepping and
 publishing overlap); it calls each tick's `then` once the tick is published, so that a sequence or reset
 is reported done only after its last tick went out. It also publishes /clock (simulators) and, once a
-second of rig time, /diagnostics.
+second of rig time, /diagnostics. What the rig's limits did each tick goes on `rig_limits`.
 """
 
 from __future__ import annotations
@@ -23,9 +23,10 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
+from g2p.envelope import EnvelopeAction
 from g2p.plant import TickSample, stamp_ns
 from g2p.tick_loop import Tick
-from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
+from g2p_interfaces.msg import MotorActivation, MotorPower, RigLimits, Treadmill
 from g2p_ros import contract
 from g2p_ros.convert import time_from_ns
 from g2p_ros.tick_serializer import TickSerializer
@@ -40,7 +41,7 @@ class TickPublisher:
     Args:
         node: the node to create the publishers on.
         hardware_id: the plant's name, in /diagnostics.
-        status: the rig's counters for /diagnostics (name -> count; "plant_faults" sets the level).
+        status: the rig's values for /diagnostics (name -> value; "plant_faults" and "trip" set the level).
         sim_time: stamp ticks with the plant's own clock from 0 (simulation time); otherwise with system
             time.
         publish_clock: publish the stamps on /clock (simulators).
@@ -53,7 +54,7 @@ class TickPublisher:
         self,
         node: Node,
         hardware_id: str,
-        status: Callable[[], dict[str, int]],
+        status: Callable[[], dict[str, int | str]],
         sim_time: bool,
         publish_clock: bool,
         clock_period_ticks: int,
@@ -78,6 +79,7 @@ class TickPublisher:
         self._pub_treadmill = node.create_publisher(Treadmill, contract.TREADMILL, qos)
         self._pub_power = node.create_publisher(MotorPower, contract.MOTOR_POWER, qos)
         self._pub_applied = node.create_publisher(MotorActivation, contract.APPLIED_ACTIVATION, qos)
+        self._pub_limits = node.create_publisher(RigLimits, contract.RIG_LIMITS, qos)
         self._serializer = TickSerializer()  # publishes serialized messages: cheaper, see its docstring
         self._pub_clock = (
             node.create_publisher(Clock, "/clock", contract.CLOCK_QOS) if publish_clock else None
@@ -144,7 +146,7 @@ class TickPublisher:
 
     @property
     def _sample_publishers(self) -> tuple[Publisher, ...]:
-        return (self._pub_joints, self._pub_treadmill, self._pub_power, self._pub_applied)
+        return (self._pub_joints, self._pub_treadmill, self._pub_power, self._pub_applied, self._pub_limits)
 
     def _run(self) -> None:
         """Publish queued ticks in order until the None that `stop` queues; then end what waits on them."""
@@ -157,6 +159,8 @@ class TickPublisher:
                     else:
                         clock = tick.idles_after or tick.number % self._clock_period_ticks == 0
                         self._publish(tick.sample, clock)
+                        if tick.envelope is not None:
+                            self._publish_limits(tick.envelope, tick.trip)
                 except Exception as err:
                     dead = not self._node.context.ok()
                     if not dead:
@@ -182,14 +186,35 @@ class TickPublisher:
         if self.published % self._diagnostics_period_ticks == 0:
             self._publish_diagnostics(time_from_ns(ns))
 
+    def _publish_limits(self, action: EnvelopeAction, trip: str) -> None:
+        """The tick's RigLimits, stamped as its samples (after `_publish`)."""
+        assert self.last_stamp_ns is not None
+        self._pub_limits.publish(
+            RigLimits(
+                header=Header(stamp=time_from_ns(self.last_stamp_ns)),
+                commanded=action.commanded,
+                joint_scale=action.joint_scale,
+                brake=action.brake,
+                thermal_scale=action.thermal_scale,
+                winding_estimate_c=action.winding_c,
+                trip=trip,
+            )
+        )
+
     def _publish_diagnostics(self, stamp: Time) -> None:
         values = {"ticks": self.published, **self._status()}
-        faults = values.get("plant_faults", 0)
+        faults, trip = values.get("plant_faults", 0), values.get("trip", "")
+        if trip:
+            level, message = DiagnosticStatus.ERROR, f"tripped: {trip}"
+        elif faults:
+            level, message = DiagnosticStatus.WARN, f"{faults} plant faults"
+        else:
+            level, message = DiagnosticStatus.OK, "ok"
         status = DiagnosticStatus(
-            level=DiagnosticStatus.OK if faults == 0 else DiagnosticStatus.WARN,
+            level=level,
             name=f"{self._node.get_fully_qualified_name()}: rig",
             hardware_id=self._hardware_id,
-            message="ok" if faults == 0 else f"{faults} plant faults",
+            message=message,
             values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
         )
         self._pub_diag.publish(DiagnosticArray(header=Header(stamp=stamp), status=[status]))

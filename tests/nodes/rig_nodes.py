@@ -20,7 +20,7 @@ from std_srvs.srv import Trigger
 
 from g2p.hardware import WiringConfig
 from g2p_interfaces.action import RunActivations, RunTrajectory
-from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
+from g2p_interfaces.msg import MotorActivation, MotorPower, RigLimits, Treadmill
 from g2p_ros import contract
 from g2p_ros.rig_client import RigClient
 from tests.nodes.rosproc import NodeProcess, RosPeer, wait_until
@@ -83,6 +83,7 @@ class RigPeer(RosPeer):
                 contract.TREADMILL,
                 contract.MOTOR_POWER,
                 contract.APPLIED_ACTIVATION,
+                contract.RIG_LIMITS,
             )
         }
         self.diagnostics: list[DiagnosticArray] = []
@@ -91,6 +92,7 @@ class RigPeer(RosPeer):
             (contract.TREADMILL, Treadmill),
             (contract.MOTOR_POWER, MotorPower),
             (contract.APPLIED_ACTIVATION, MotorActivation),
+            (contract.RIG_LIMITS, RigLimits),
         ):
             self.node.create_subscription(msg_type, name, self._collector(name), DEEP_QOS)
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append, 10)

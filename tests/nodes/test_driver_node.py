@@ -308,3 +308,26 @@ def test_the_driver_imports_mujoco_only_for_fake_devices_and_never_torch(
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip().splitlines()[-1] == str(sorted(heavy))
+
+
+def test_the_driver_derates_a_hot_motor_from_its_measured_currents(
+    tmp_path: Path, state_dir: Path, peer: LifecyclePeer
+) -> None:
+    # Derating from 26 degC: a few seconds at activation 1 heat the windings' estimate that far, from the
+    # fake INA219s' currents.
+    driver = start_driver(
+        tmp_path, state_dir, "rig.envelope.derate_start_c:=26.0", "rig.envelope.derate_full_c:=30.0"
+    )
+    try:
+        peer.wait_for_driver()
+        assert peer.transition(Transition.TRANSITION_CONFIGURE), driver.log()
+        assert peer.transition(Transition.TRANSITION_ACTIVATE), driver.log()
+        response = peer.wait(peer.play(np.ones((390, 3))).get_result_async(), 30.0)
+        assert response.status == GoalStatus.STATUS_SUCCEEDED, response.result.message
+        rec = recording_from_msg(response.result.samples)
+        assert np.all(rec.activation[:5] == 1.0)  # cold: untouched
+        assert np.all(rec.activation[-1] < 1.0)  # hot: derated toward baseline
+        assert np.all(rec.current_a[-1] < rec.current_a[len(rec) // 4])
+        assert peer.transition(Transition.TRANSITION_DEACTIVATE), driver.log()
+    finally:
+        assert driver.stop() == 0, driver.log_path.read_text()

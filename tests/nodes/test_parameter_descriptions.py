@@ -19,7 +19,7 @@ from tests.nodes.rosproc import NodeProcess, RosPeer
 RCLPY_PARAMETERS = {"use_sim_time", "start_type_description_service"}
 # A unit, or a word saying there is none, in parentheses: "(s)", "(mm of belt travel)", "(dimensionless)".
 UNIT = re.compile(
-    r"\([^()]*\b(s|ms|Hz|mm|m|rad|rad/s|deg|N|N m|N/m|A|W|J|V|kg|mm/s|m/s|dimensionless|ticks?|samples?|"
+    r"\([^()]*\b(s|ms|Hz|mm|m|rad|rad/s|deg|N|N m|N/m|A|W|J|V|ohm|kg|mm/s|m/s|dimensionless|ticks?|samples?|"
     r"messages?|feature units|normalized units|mm of belt travel|0\.\.1)\b[^()]*\)"
 )
 FLOAT_TYPES = {ParameterType.PARAMETER_DOUBLE, ParameterType.PARAMETER_DOUBLE_ARRAY}

@@ -13,6 +13,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
+from g2p.envelope import replay
 from g2p.plant import NOMINAL_TICK_HZ
 from g2p_interfaces.action import RunActivations
 from g2p_interfaces.msg import MotorActivation
@@ -47,7 +48,7 @@ def test_run_activations_gives_feedback_and_the_samples_the_topics_carried(
     assert response.status == GoalStatus.STATUS_SUCCEEDED
     rec = recording_from_msg(response.result.samples)
     assert len(rec) == n
-    np.testing.assert_array_equal(rec.activation, activations)
+    np.testing.assert_array_equal(rec.activation, replay(activations, rec))
     assert np.all(np.diff(rec.t_s) > 0)
     # M1 alone above baseline flexes the hip (Fig 1d).
     assert rec.position_rad[-1, 0] > rec.position_rad[0, 0] + math.radians(5)
@@ -250,3 +251,65 @@ def test_realtime_mode_ticks_at_78_hz_and_the_watchdog_drops_to_baseline(tmp_pat
     finally:
         peer.close()
         assert proc.stop() == 0, proc.log()
+
+
+def test_the_rig_publishes_what_its_limits_did_each_tick_and_derates_a_hot_motor(
+    tmp_path: Path, peer: RigPeer
+) -> None:
+    # Derating from 26 degC: a few seconds at activation 1 heat the windings that far.
+    sim = start_sim(
+        tmp_path, "time_mode:=fast", "rig.envelope.derate_start_c:=26.0", "rig.envelope.derate_full_c:=30.0"
+    )
+    try:
+        peer.wait_for_rig()
+        n = 400
+        handle = peer.play(np.ones((n, 3)))
+        response = peer.wait(handle.get_result_async(), 60.0)
+        assert response.status == GoalStatus.STATUS_SUCCEEDED
+        rec = recording_from_msg(response.result.samples)
+        assert np.all(rec.activation[:10] == 1.0)  # cold: untouched
+        assert np.all(rec.activation[-1] < 1.0)  # hot: derated toward baseline
+        wait_until(lambda: len(peer.received[contract.RIG_LIMITS]) >= n, 10.0, "rig_limits for each tick")
+        with peer.lock:
+            limits = list(peer.received[contract.RIG_LIMITS])
+            applied = list(peer.received[contract.APPLIED_ACTIVATION])
+        assert [stamp_s(m) for m in limits] == [stamp_s(m) for m in applied]
+        last = limits[-1]
+        assert list(last.commanded) == [1.0, 1.0, 1.0] and max(last.thermal_scale) < 1.0
+        assert min(last.winding_estimate_c) > 26.0 and last.trip == ""
+        np.testing.assert_allclose(
+            rec.activation[-1], BASELINE + (1.0 - BASELINE) * np.array(last.thermal_scale), atol=1e-12
+        )
+        wait_until(lambda: bool(peer.diagnostics), 10.0, "a diagnostics message")
+        values = {kv.key: kv.value for kv in peer.diagnostics[-1].status[0].values}
+        assert int(values["envelope_ticks"]) > 0 and values["trip"] == ""
+    finally:
+        assert sim.stop() == 0, sim.log()
+
+
+def test_a_tripped_rig_tells_the_client_why_and_holds_baseline_until_reset(
+    tmp_path: Path, peer: RigPeer
+) -> None:
+    calibration = tmp_path / "weak_tendons.yaml"
+    calibration.write_text(
+        "format: g2p-leg-calibration\nversion: 1\nmodel: g2p_leg\n"
+        "parameters: {tendon_rated_tension_n: 30.0, tendon_breaking_tension_n: 40.0}\n"
+    )
+    sim = start_sim(tmp_path, "time_mode:=fast", f"leg.calibration:={calibration}")
+    try:
+        peer.wait_for_rig()
+        handle = peer.play(np.tile([0.15, 1.0, 0.15], (156, 1)))
+        response = peer.wait(handle.get_result_async(), 60.0)
+        assert response.status == GoalStatus.STATUS_ABORTED
+        assert "tendon M1 snapped" in response.result.message
+        rec = recording_from_msg(response.result.samples)
+        assert len(rec) < 156
+        again = peer.wait(peer.play(np.full((5, 3), 0.3)).get_result_async(), 30.0)
+        assert again.status == GoalStatus.STATUS_ABORTED and "rig tripped" in again.result.message
+        wait_until(lambda: bool(peer.applied()) and peer.applied()[-1] == [BASELINE] * 3, 10.0, "baseline")
+        reset = peer.wait(peer.reset.call_async(Trigger.Request()), 30.0)
+        assert reset.success and "put right after: tendon M1 snapped" in reset.message
+        fine = peer.wait(peer.play(np.full((5, 3), 0.3)).get_result_async(), 30.0)
+        assert fine.status == GoalStatus.STATUS_SUCCEEDED
+    finally:
+        assert sim.stop() == 0, sim.log()

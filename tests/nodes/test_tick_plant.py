@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from rclpy.parameter import Parameter
 
+from g2p.envelope import replay
 from g2p.plant import FloatArray, Plant, Recording, TickSample
 from g2p.rig import RigError, RigUnreachable
 from g2p.sim import MujocoLeg, MujocoLegConfig
@@ -104,11 +105,12 @@ def test_treadmill_env_over_the_sim_node_steps_the_leg_tick_for_tick(tmp_path: P
     assert math.isclose(sum(rewards), rec.belt_travel_mm, abs_tol=1e-9)
     assert info["belt_travel_mm"] == rec.belt_travel_mm
     np.testing.assert_array_equal(obs[:2], rec.position_rad[-1])
-    # The applied activations, not the commands: the command above baseline, baseline below it.
-    applied, above = rec.activation[1:], a > BASELINE
+    # The applied activations, not the commands: the command above baseline, baseline below it, through
+    # the rig's safety envelope (each from the tick before: the reset's baseline tick first).
+    above = a > BASELINE
     assert above.any() and (~above).any()
-    np.testing.assert_array_equal(applied[above], a[above])
-    np.testing.assert_array_equal(applied[~above], BASELINE)
+    applied = replay(np.maximum(a, BASELINE), rec)
+    np.testing.assert_array_equal(rec.activation[1:], applied)
     np.testing.assert_array_equal(rec.activation[0], [BASELINE] * 3)  # reset's baseline tick
     # Known answer: the node's MujocoLeg (same parameters and seed) was reset at start and by the reset
     # service, then stepped once per command: the same leg in-process, stepped alike, gives the same ticks
@@ -116,7 +118,7 @@ def test_treadmill_env_over_the_sim_node_steps_the_leg_tick_for_tick(tmp_path: P
     leg = MujocoLeg(MujocoLegConfig(seed=SEED))
     leg.reset()  # the rig server's start
     leg.reset()  # TickPlant.reset: the reset service, then one baseline tick
-    want = Recording.from_samples([leg.step(np.full(3, BASELINE)), *(leg.step(row) for row in a)])
+    want = Recording.from_samples([leg.step(np.full(3, BASELINE)), *(leg.step(row) for row in applied)])
     for field in fields(Recording):
         if field.name != "t_s":
             np.testing.assert_array_equal(getattr(rec, field.name), getattr(want, field.name), field.name)
