@@ -1,15 +1,16 @@
 """The rig's safety envelope: what every rig's tick loop does to an activation before the motors get it.
 
 Whatever the client (the learner, an RL agent, `ros2 topic pub`), each tick's activation passes through one
-`SafetyEnvelope`, from the previous tick's measurements only (joint angles and velocities, motor currents),
-so that the simulator and the hardware driver apply the same rules:
+`SafetyEnvelope`, from what the rig knows at the tick's start (the previous tick's joint angles and
+velocities, the activations applied so far), so that the simulator and the hardware driver apply the
+same rules:
 
-- **Soft joint limits** (ros2_control's joint_limits soft limits are the model): a joint may move toward
-  its stop at no more than `k_position * (distance to the stop - margin)`. Beyond that speed the
-  activations of the tendons that turn it toward the stop are scaled down toward baseline, by
-  `k_velocity` per rad/s of excess, down to baseline at an excess of 1 / k_velocity; the tendons that
-  turn it away from the stop (its antagonists) are raised by `brake_activation` at full excess, so that
-  the joint is braked before it strikes.
+- **Soft joint limits** (ros2_control's joint_limits soft limits are the model): while a client drives
+  the rig (a motor above baseline), a joint may move toward a stop at no more than
+  `impact_speed_rad_s + k_position * (distance ahead - margin)`. Beyond that speed the tendons that turn
+  it away from the stop (its antagonists) are raised by up to `brake_activation`, by `k_velocity` per
+  rad/s of excess, so that the joint is braked before it strikes; with `scale_drivers` the tendons that
+  drive it there are also scaled down toward baseline by the excess.
 - **A thermal budget per motor** (I^2 t, as motor drivers protect windings): each winding's temperature is
   estimated with the rated first-order thermal model from the current its current-mode driver regulates,
   the applied activation times the current at activation 1. The supply voltage only lowers the true
@@ -94,10 +95,10 @@ class EnvelopeConfig:
     margin_rad: float = 0.05
     impact_speed_rad_s: float = 4.0
     k_position: float = 5.0
-    horizon_s: float = 0.05
-    k_velocity: float = 0.5
-    scale_drivers: bool = False
-    brake_activation: float = 0.3
+    horizon_s: float = 0.1
+    k_velocity: float = 1.0
+    scale_drivers: bool = True
+    brake_activation: float = 0.0
     winding: WindingRating = field(default_factory=WindingRating)
     derate_start_c: float = 72.0
     derate_full_c: float = 78.0
@@ -176,15 +177,20 @@ class SafetyEnvelope:
         """The activation to apply during the coming tick.
 
         Args:
-            activation: the activation decided (3,), in [baseline, 1].
+            activation: the activation decided (3,); clipped to [baseline, 1] first, as the plant would.
             position_rad: joint angles at the end of the previous tick (2,); None when unknown.
             velocity_rad_s: joint velocities at the end of the previous tick (2,); None when unknown.
         """
         cfg = self.config
         base = self.baseline_activation
+        # What the rig would apply without the envelope (a tracker's output may leave [baseline, 1]).
+        activation = np.clip(activation, base, 1.0)
         joint_scale = np.ones(N_MOTORS)
         brake = np.zeros(N_MOTORS)
-        if cfg.soft_limits and position_rad is not None and velocity_rad_s is not None:
+        # Only while a client drives the rig (a motor above baseline): the rig's own baseline (idle, after
+        # a cancel, a fault or a stop) stays baseline.
+        driven = bool(np.any(activation > base))
+        if cfg.soft_limits and driven and position_rad is not None and velocity_rad_s is not None:
             for side, distance, toward in (
                 (1.0, self._upper - position_rad, velocity_rad_s),
                 (-1.0, position_rad - self._lower, -velocity_rad_s),
@@ -194,8 +200,6 @@ class SafetyEnvelope:
                 excess = np.clip((toward - allowed) * cfg.k_velocity, 0.0, 1.0)  # (2,) per joint
                 drives = TENDON_DIRECTIONS * side  # (3, 2): +1 for a tendon that turns the joint that way
                 for j in np.flatnonzero(excess):
-                    if not np.any((drives[:, j] > 0) & (activation > base)):
-                        continue  # nothing drives it there: a joint at baseline is the rig's, not a client's
                     if cfg.scale_drivers:
                         scale = np.where(drives[:, j] > 0, 1.0 - excess[j], 1.0)
                         joint_scale = np.minimum(joint_scale, scale)

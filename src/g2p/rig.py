@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from g2p.closed_loop import TrackedRecording, Trajectory, TrajectoryTracker
 from g2p.plant import NOMINAL_TICK_HZ, Plant, Recording, TickSample
 from g2p.safety import check_activation_sequence
-from g2p.tick_loop import Job, Pacing, TickLoop, TickLoopConfig
+from g2p.tick_loop import Job, LoopCounters, Pacing, TickLoop, TickLoopConfig
 
 ProgressCallback = Callable[[int, int], None]
 
@@ -105,6 +105,11 @@ class PlantRig:
         unpaced = replace(config or TickLoopConfig(), fast_max_real_time_factor=0.0)
         self._loop = TickLoop(plant, Pacing.ON_DEMAND, unpaced)
         self._loop.start(threaded=False)
+
+    @property
+    def counters(self) -> LoopCounters:
+        """The rig's tick loop's counters: ticks, faults, ticks the safety envelope changed, trips."""
+        return self._loop.counters
 
     def reset(self) -> None:
         """Reset the plant to rest.

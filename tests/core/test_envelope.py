@@ -8,12 +8,24 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from g2p.envelope import EnvelopeConfig, SafetyEnvelope, WindingRating, first_order_temperature
+from g2p.babbling import BabblingConfig
+from g2p.envelope import (
+    JOINT_STOPS_RAD,
+    EnvelopeConfig,
+    SafetyEnvelope,
+    WindingRating,
+    first_order_temperature,
+    stop_entry_speeds,
+)
+from g2p.experiments import TreadmillRun
+from g2p.learner import Learner, LearnerConfig
+from g2p.limit_cycle import LimitCycleConfig
 from g2p.plant import hold
 from g2p.rig import PlantRig, RigError
 from g2p.safety import BASELINE_ACTIVATION
+from g2p.search import SearchConfig
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, MujocoLeg, MujocoLegConfig
-from g2p.tick_loop import CommandOutcome, Job, Pacing, TickLoop
+from g2p.tick_loop import CommandOutcome, Job, Pacing, TickLoop, TickLoopConfig
 
 ONES = np.ones(3)
 
@@ -58,7 +70,7 @@ def test_soft_limits_raise_the_antagonists_of_a_joint_flying_at_its_stop_and_sca
     # Far from the stops, or slow, or moving away: untouched.
     for q, v in (([0.0, -0.9], [0.0, 3.0]), ([0.0, -0.2], [0.0, 1.0]), ([0.0, -0.2], [0.0, -5.0])):
         assert not envelope.limit(a, np.array(q), np.array(v)).acted
-    # Nothing above baseline drives it there: the rig's own baseline is left alone.
+    # No motor above baseline: the rig's own baseline (idle, after a cancel or a fault) is left alone.
     assert not envelope.limit(
         np.full(3, BASELINE_ACTIVATION), np.array([0.0, -0.2]), np.array([0.0, 10.0])
     ).acted
@@ -105,3 +117,51 @@ def test_a_trip_ends_the_job_with_its_reason_and_holds_baseline_until_a_reset() 
     assert loop.trip == "" and plant.fault == ""
     recording = rig.play(np.tile([0.15, 0.3, 0.15], (5, 1)))
     np.testing.assert_allclose(recording.activation[-1], [0.15, 0.3, 0.15])
+
+
+def _square_wave(seconds: float, tick_hz: float, hz: float = 0.97) -> np.ndarray:
+    """The slamming pattern: M0 and M2 at 1 with M1 at baseline for half a period, then the reverse."""
+    t = np.arange(round(seconds * tick_hz)) / tick_hz
+    first = (np.floor(t * hz * 2) % 2 == 0)[:, None]
+    return np.where(first, [1.0, BASELINE_ACTIVATION, 1.0], [BASELINE_ACTIVATION, 1.0, BASELINE_ACTIVATION])
+
+
+def _knee_entries(envelope: EnvelopeConfig, activations: np.ndarray) -> tuple[np.ndarray, int]:
+    rig = PlantRig(MujocoLeg(MujocoLegConfig()), config=TickLoopConfig(envelope=envelope))
+    rig.reset()
+    rec = rig.play(activations)
+    speeds = stop_entry_speeds(rec.position_rad[:, 1], rec.velocity_rad_s[:, 1], JOINT_STOPS_RAD[1])
+    return speeds, rig.counters.envelope_ticks
+
+
+def test_a_knee_slammed_into_its_stop_is_slowed() -> None:
+    # The two-phase square wave for 30 s: its slams build up over the first 15 s (docs/RESULTS.md, "The rig's
+    # limits": knee p95 21.1 rad/s, max 30.7, without soft limits; 12.7 and 15.0 with them).
+    square = _square_wave(30.0, MujocoLegConfig().tick_hz)
+    raw, _ = _knee_entries(EnvelopeConfig(soft_limits=False), square)
+    limited, changed = _knee_entries(EnvelopeConfig(), square)
+    assert len(raw) >= 20 and len(limited) >= 20 and changed > 0
+    assert np.percentile(limited, 95) < 0.8 * np.percentile(raw, 95)
+    assert np.max(limited) < 0.7 * np.max(raw)
+
+
+def test_babbling_and_a_short_g2p_run_pass_the_envelope_almost_untouched() -> None:
+    # Measured over a whole default run (docs/RESULTS.md, "The rig's limits"): the envelope changes 3.4 % of
+    # babbling's ticks and 3.9 % of the attempts'. This short run's first attempts strike harder (8.1 % of
+    # its attempt ticks): the bounds leave room for that, not for more.
+    learner = Learner(LearnerConfig(babbling=BabblingConfig(duration_s=60.0)))
+    rig = PlantRig(MujocoLeg(MujocoLegConfig()))
+    learner.babble(rig)
+    babbled, babbling_changed = rig.counters.ticks, rig.counters.envelope_ticks
+    assert babbling_changed / babbled < 0.06
+    run = TreadmillRun(
+        learner,
+        SearchConfig(max_exploration_attempts=3, exploitation_attempts=3),
+        LimitCycleConfig(n_cycles=5),
+        0,
+    )
+    while not run.finished:
+        run.next_attempt(rig)
+    attempts = rig.counters.ticks - babbled
+    assert attempts > 0 and (rig.counters.envelope_ticks - babbling_changed) / attempts < 0.12
+    assert rig.counters.trips == 0
