@@ -4,7 +4,9 @@ A policy written for an in-process plant (a Gymnasium environment of g2p.envs, s
 node or the hardware driver with it, chosen by remapping or the node's namespace. Each `step` publishes one
 command stamped with the node's clock and returns the first tick the rig publishes stamped after it,
 built from that tick's four messages; its `activation` is the rig's `applied_activation` (after clamping,
-baseline and watchdog), not the command.
+baseline, watchdog and the rig's safety envelope), not the command. The tick's `rig_limits` message says
+whether the rig tripped: `fault` is its reason, as an in-process `MujocoLeg`'s, so a Gymnasium environment
+over this plant terminates on a trip as over the in-process rig.
 
 Timing (docs/RL.md): in fast simulation every command plays exactly one tick (lockstep), so the tick
 returned is the one the command played. In real time (the hardware, or the simulator in realtime mode)
@@ -36,7 +38,7 @@ from std_srvs.srv import Trigger
 from g2p.plant import NOMINAL_TICK_HZ, FloatArray, TickSample
 from g2p.rig import RigError, RigUnreachable
 from g2p.safety import BASELINE_ACTIVATION, check_activation
-from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
+from g2p_interfaces.msg import MotorActivation, MotorPower, RigLimits, Treadmill
 from g2p_ros import contract
 from g2p_ros.convert import tick_sample
 from g2p_ros.rig_client import call_reset
@@ -48,6 +50,8 @@ _TOPICS = (
     (contract.MOTOR_POWER, MotorPower),
     (contract.APPLIED_ACTIVATION, MotorActivation),
 )
+# And what the rig's limits did over the tick: a tick is complete with all five.
+_PARTS = (*_TOPICS, (contract.RIG_LIMITS, RigLimits))
 # Only the newest ticks matter here; a reliable reader of this depth rides out this process's pauses.
 _TICK_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 # Ticks kept once complete (about 3 s at 78 Hz), and incomplete ones (a topic behind the others).
@@ -87,8 +91,10 @@ class TickPlant:
         self._tick_timeout_s = tick_timeout_s
         self._reset_timeout_s = reset_timeout_s
         self._cv = threading.Condition()
-        self._parts: dict[int, dict[str, Any]] = {}  # stamp (ns) -> topic -> message, until all four came
-        self._ticks: deque[tuple[int, int, TickSample]] = deque(maxlen=_KEEP_TICKS)  # (number, ns, sample)
+        self._parts: dict[int, dict[str, Any]] = {}  # stamp (ns) -> topic -> message, until all five came
+        # (number, ns, sample, trip) of the newest complete ticks
+        self._ticks: deque[tuple[int, int, TickSample, str]] = deque(maxlen=_KEEP_TICKS)
+        self._fault = ""
         self._completed = 0  # ticks completed so far
         self._newest_ns = -1  # stamp of the newest complete tick
         self._bad = ""  # why the last malformed tick was dropped
@@ -97,7 +103,7 @@ class TickPlant:
         self._cmd = node.create_publisher(MotorActivation, contract.ACTIVATION_CMD, contract.COMMAND_QOS)
         self._subs = [
             node.create_subscription(msg_type, name, self._collector(name), _TICK_QOS, callback_group=group)
-            for name, msg_type in _TOPICS
+            for name, msg_type in _PARTS
         ]
         self._reset = node.create_client(Trigger, contract.RESET, callback_group=group)
         self._topics_watch = contract.ServerWatch(
@@ -115,6 +121,11 @@ class TickPlant:
     def tick_hz(self) -> float:
         """Nominal tick rate (Hz)."""
         return self._tick_hz
+
+    @property
+    def fault(self) -> str:
+        """Why the rig was tripped after the last tick returned (a limit's reason; "" when it was not)."""
+        return self._fault
 
     def reset(self) -> TickSample:
         """Reset the rig to rest (waiting until it is), then play one baseline tick and return it.
@@ -182,14 +193,15 @@ class TickPlant:
         deadline = time.monotonic() + self._tick_timeout_s
         with self._cv:
             while True:
-                for k, ns, sample in self._ticks:
+                for k, ns, sample, trip in self._ticks:
                     if k > number and ns > after_ns:
+                        self._fault = trip
                         return sample
                 left = deadline - time.monotonic()
                 if left <= 0:
                     break
                 self._cv.wait(left)
-            heard = [ns for k, ns, _ in self._ticks if k > number]
+            heard = [ns for k, ns, _, _ in self._ticks if k > number]
         if heard and max(heard) < command_ns - _CLOCK_TOLERANCE_S * 1e9:
             raise RigError(
                 f"{len(heard)} ticks came after the command, all stamped long before it (newest "
@@ -205,7 +217,7 @@ class TickPlant:
             with self._cv:
                 parts = self._parts.setdefault(ns, {})
                 parts[topic] = msg
-                if len(parts) < len(_TOPICS):
+                if len(parts) < len(_PARTS):
                     while len(self._parts) > _KEEP_TICKS:  # a topic that never comes: forget the oldest
                         del self._parts[min(self._parts)]
                     return
@@ -217,7 +229,7 @@ class TickPlant:
                     return
                 self._completed += 1
                 self._newest_ns = max(self._newest_ns, ns)
-                self._ticks.append((self._completed, ns, sample))
+                self._ticks.append((self._completed, ns, sample, str(parts[contract.RIG_LIMITS].trip)))
                 self._cv.notify_all()
 
         return collect

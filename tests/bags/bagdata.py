@@ -109,6 +109,22 @@ def rig_messages(messages: Messages, k: int, stamp: int) -> dict[str, Any]:
     }
 
 
+def rig_limits_message(messages: Messages, k: int, stamp: int) -> Any:
+    """Synthetic tick k's RigLimits: the envelope raised M2 by 0.1 on every tick with k % 10 == 3."""
+    applied = tick_values(k)["activation"]
+    changed = k % 10 == 3
+    return messages.make(
+        "g2p_interfaces/msg/RigLimits",
+        header=messages.header(stamp),
+        commanded=applied - np.array([0.0, 0.0, 0.1 if changed else 0.0]),
+        joint_scale=np.ones(3),
+        brake=np.array([0.0, 0.0, 0.1 if changed else 0.0]),
+        thermal_scale=np.ones(3),
+        winding_estimate_c=np.full(3, 25.0),
+        trip="",
+    )
+
+
 def learner_event(messages: Messages, stamp: int, run_id: str, kind: str, **fields: Any) -> Any:
     """A LearnerEvent stamped `stamp` (ns); unset numbers are NaN, unset arrays empty, detail a dict."""
     values: dict[str, Any] = dict(
@@ -139,6 +155,7 @@ def write_synthetic_run(
 
     Known answers: 80% of babbling ticks lie within 5% of a limit (limits given in run_start); rewards
     10, 30, 70 (exploration), 90, 80 (exploitation); threshold 64 mm (in run_start's search settings).
+    The rig's envelope changed one tick in ten (5 per attempt; `rig_limits_message`).
     Attempts 1-3 are open loop (no "control" key, as older runs record them), 4 and 5 closed loop with a
     velocity correction of (0.1 k, 0) rad/s at every tick of attempt k.
     One tick lacks its joint_states message (when skip_joint_state_of is set), so it is incomplete.
@@ -158,6 +175,9 @@ def write_synthetic_run(
         role: writer.add_topic(TopicSpec(f"/leg/{role}", registry.definition(t), (SAMPLE_QOS,)))
         for role, t in rig_types.items()
     }
+    limits = writer.add_topic(
+        TopicSpec("/leg/rig_limits", registry.definition("g2p_interfaces/msg/RigLimits"), (SAMPLE_QOS,))
+    )
     events = writer.add_topic(
         TopicSpec(
             "/leg/learner/events", registry.definition("g2p_interfaces/msg/LearnerEvent"), (SAMPLE_QOS,)
@@ -193,6 +213,7 @@ def write_synthetic_run(
             if role == "joint_states" and k == skip_joint_state_of:
                 continue
             writer.write(handles[role], stamp + 1000, messages.cdr(msg))
+        writer.write(limits, stamp + 1000, messages.cdr(rig_limits_message(messages, k, stamp)))
         if record is not None and k != skip_joint_state_of:
             record.append(k)
         k += 1

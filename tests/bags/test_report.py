@@ -56,6 +56,8 @@ def test_summary_known_answers(run: SyntheticRun) -> None:
     assert summary["exploitation_improvement_mm"] == 20.0
     assert [a["best_reward_mm"] for a in summary["attempts"]] == [10.0, 30.0, 70.0, 90.0, 90.0]
     assert [a["ticks"] for a in summary["attempts"]] == [50] * 5
+    assert [a["envelope_ticks"] for a in summary["attempts"]] == [5] * 5
+    assert [a["trip"] for a in summary["attempts"]] == [""] * 5
     assert summary["tracking_mse_deg2"] == [100.0 / k for k in range(1, 6)]
     assert [a["control"] for a in summary["attempts"]] == ["open"] * 3 + ["closed"] * 2
     corrections = [a["correction_rms_rad_s"] for a in summary["attempts"]]

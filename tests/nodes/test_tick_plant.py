@@ -79,6 +79,38 @@ class TickPeer(RosPeer):
         self.plant.close()
 
 
+def test_treadmill_env_over_the_sim_node_terminates_on_a_trip_and_reset_puts_the_rig_right(
+    tmp_path: Path,
+) -> None:
+    from g2p.envs import TreadmillEnv
+
+    calibration = tmp_path / "weak_tendons.yaml"  # M1 at 1 pulls 60 N: a 40 N tendon snaps
+    calibration.write_text(
+        "format: g2p-leg-calibration\nversion: 1\nmodel: g2p_leg\n"
+        "parameters: {tendon_rated_tension_n: 30.0, tendon_breaking_tension_n: 40.0}\n"
+    )
+    sim = start_sim(tmp_path, "time_mode:=fast", f"leg.calibration:={calibration}")
+    peer = TickPeer()
+    try:
+        env = TreadmillEnv(plant=peer.plant, reset_noise_scale=0.0)
+        env.reset()
+        for _ in range(100):
+            _, _, terminated, truncated, info = env.step(np.array([BASELINE, 1.0, BASELINE], np.float32))
+            if terminated:
+                break
+        assert terminated and not truncated, "no trip in 100 steps"
+        assert "tendon M1 snapped" in info["trip"]
+        with pytest.raises(RuntimeError, match="terminated"):
+            env.step(np.full(3, BASELINE, np.float32))
+        env.reset()  # the rig's reset re-tendons it
+        _, _, terminated, _, info = env.step(np.array([BASELINE, 0.3, BASELINE], np.float32))
+        assert not terminated and "trip" not in info and peer.plant.fault == ""
+        env.close()
+    finally:
+        peer.close()
+        assert sim.stop() == 0, sim.log()
+
+
 def test_treadmill_env_over_the_sim_node_steps_the_leg_tick_for_tick(tmp_path: Path) -> None:
     from g2p.envs import TreadmillEnv
 
@@ -170,7 +202,9 @@ def test_realtime_a_command_takes_effect_a_tick_later_and_the_watchdog_drops_a_s
     """The rig ticks on its own at 78 Hz (as the hardware does) and decides each tick's activation at its
     start: a command arrives during the tick returned for it (the first stamped after it) and plays the
     next one, so each step's tick shows the previous step's command."""
-    sim = start_sim(tmp_path, "time_mode:=realtime", f"leg.seed:={SEED}")
+    # The applied activations tell which command played: the soft limits, which change them near the
+    # stops, are off here (the envelope's thermal budget stays far from derating).
+    sim = start_sim(tmp_path, "time_mode:=realtime", f"leg.seed:={SEED}", "rig.envelope.soft_limits:=false")
     peer = TickPeer(sim_time=False)  # system time, as on the hardware
     commands = np.random.default_rng(1).uniform(0.2, 0.9, (100, 3))
     try:

@@ -54,7 +54,19 @@ def test_a_hidden_rig_is_recovered_from_its_bag_and_served(tmp_path: Path) -> No
 
     out = tmp_path / "calibration.yaml"
     calibrate = subprocess.run(
-        [g2p_calibrate(), str(bags / "hidden"), "--out", str(out), "--params", ",".join(HIDDEN)],
+        # 8-tick windows: on this run's babbling (braked at its stops by the rig's envelope) the default
+        # 16-tick windows' residual is rough enough to stop the fit in a local minimum (motor lag 0.0379 s,
+        # cost 11,836 against the truth's 11); shorter horizons keep it smooth (FitConfig.window_ticks).
+        [
+            g2p_calibrate(),
+            str(bags / "hidden"),
+            "--out",
+            str(out),
+            "--params",
+            ",".join(HIDDEN),
+            "--window-ticks",
+            "8",
+        ],
         capture_output=True,
         text=True,
         timeout=900,

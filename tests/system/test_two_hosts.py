@@ -228,10 +228,14 @@ def test_a_partition_during_an_attempt_retries_it_once_the_link_returns(
     first = next(a for a in run.attempts if a.attempt == 1)
     planned = len(retried.desired_position_rad)
     t, act = run.ticks.recording.t_s, run.ticks.recording.activation
-    # The lost sequence is the retried one (same features, same map): find where the rig played it.
-    played = retried.recording.activation
+    # The lost sequence is the retried one (same features, same map): find where the rig played it, by the
+    # activations it decided (its safety envelope's braking depends on the joints' velocities).
+    decided, played = run.decided_activation(run.ticks.recording), run.decided_activation(retried.recording)
+    assert decided is not None and played is not None
     lost_start = next(
-        k for k in np.flatnonzero(t > first.recording.t_s[-1]) if np.array_equal(act[k : k + planned], played)
+        k
+        for k in np.flatnonzero(t > first.recording.t_s[-1])
+        if np.array_equal(decided[k : k + planned], played)
     )
     assert t[lost_start] < retried.recording.t_s[0]  # the lost one, not the retry
     idle = (t > t[lost_start + planned - 1]) & (t < retried.recording.t_s[0] - 0.05)

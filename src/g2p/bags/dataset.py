@@ -39,7 +39,7 @@ from g2p.bags.events import (
     run_event,
 )
 from g2p.bags.reader import BagReader
-from g2p.bags.ticks import TickAssembler, Ticks, rig_topic_names
+from g2p.bags.ticks import TickAssembler, Ticks, header_stamp_ns, rig_topic_names
 from g2p.description import LegDescription
 from g2p.plant import N_JOINTS, Recording, concatenate
 from g2p.rig import DEFAULT_NAMESPACE
@@ -50,6 +50,11 @@ BABBLING = "babbling"
 # The rig nodes publish the leg's URDF here (std_msgs/String, latched), relative to the rig namespace.
 ROBOT_DESCRIPTION = "robot_description"
 ROBOT_DESCRIPTION_TYPE = "std_msgs/msg/String"
+# What the rig's safety envelope did each tick (g2p_ros.contract.RIG_LIMITS), stamped as the tick.
+RIG_LIMITS = "rig_limits"
+RIG_LIMITS_TYPE = "g2p_interfaces/msg/RigLimits"
+# A tick's stamp (ns) -> (the activation decided, shape (3,); the trip after it, "" when none).
+RigLimitsByStamp = dict[int, tuple[FloatArray, str]]
 _END_OF_TIME = np.iinfo(np.int64).max
 _STAMP_SLACK_NS = 1_000_000
 
@@ -68,6 +73,9 @@ class AttemptData:
             events' detail JSON key "desired_rad" (None when not given).
         correction_rad_s: closed loop: the rig's velocity correction of each tick, shape (M, 2) (rad/s),
             from the detail key "correction_rad_s" (None in open loop or when not given).
+        envelope_ticks: the attempt's ticks whose activation the rig's safety envelope changed, from the
+            `rig_limits` topic (None when the bag has none).
+        trip: why the rig tripped during the attempt, from `rig_limits` ("" when it did not).
     """
 
     attempt: int
@@ -77,6 +85,8 @@ class AttemptData:
     recording: Recording
     desired_position_rad: FloatArray | None
     correction_rad_s: FloatArray | None = None
+    envelope_ticks: int | None = None
+    trip: str = ""
 
     @property
     def control(self) -> str:
@@ -136,6 +146,8 @@ class RunData:
         configs: each node's configuration (topic -> parsed JSON) from the latched `~/config` topics.
         leg_description: the leg the rig ran, from the last message on its `robot_description` topic
             (the URDF the rig nodes publish, g2p.urdf); None when the bag has none (older bags).
+        rig_limits: each tick's `rig_limits` message (by stamp, ns): the activation the rig decided,
+            before its safety envelope, and the trip; None when the bag has none.
     """
 
     bag: Path
@@ -149,6 +161,18 @@ class RunData:
     inverse_maps: list[InverseMapSnapshot]
     configs: dict[str, Any]
     leg_description: LegDescription | None = None
+    rig_limits: RigLimitsByStamp | None = None
+
+    def decided_activation(self, recording: Recording) -> FloatArray | None:
+        """The activations the rig decided for `recording`'s ticks, before its envelope, shape (N, 3).
+
+        A tick without its `rig_limits` message gets a row of NaN; None when the bag has none.
+        """
+        if self.rig_limits is None:
+            return None
+        missing = (np.full(3, np.nan), "")
+        rows = [self.rig_limits.get(round(t * 1e9), missing)[0] for t in recording.t_s]
+        return np.array(rows).reshape(-1, 3)
 
     @property
     def babbling(self) -> Recording:
@@ -187,6 +211,10 @@ def load_run(bag: Path | str, rig_namespace: str = DEFAULT_NAMESPACE) -> RunData
         topics = reader.topics
         rig = rig_topic_names(topics, rig_namespace)
         description_topic = f"{rig_namespace.rstrip('/')}/{ROBOT_DESCRIPTION}"
+        limits_topic = f"{rig_namespace.rstrip('/')}/{RIG_LIMITS}"
+        limits_topics = [
+            t.name for t in topics.values() if t.name == limits_topic and t.msgtype == RIG_LIMITS_TYPE
+        ]
         description_topics = [
             t.name
             for t in topics.values()
@@ -203,9 +231,10 @@ def load_run(bag: Path | str, rig_namespace: str = DEFAULT_NAMESPACE) -> RunData
         maps: list[InverseMapSnapshot] = []
         configs: dict[str, Any] = {}
         urdf: str | None = None
+        limits: RigLimitsByStamp | None = {} if limits_topics else None
         source = str(reader.metadata.storage_files[0]) if reader.metadata.storage_files else str(bag)
         for m in reader.messages(
-            [*rig.values(), *event_topics, *map_topics, *config_topics, *description_topics]
+            [*rig.values(), *event_topics, *map_topics, *config_topics, *description_topics, *limits_topics]
         ):
             if m.topic in role_of:
                 assembler.add(role_of[m.topic], m.msg)
@@ -216,6 +245,9 @@ def load_run(bag: Path | str, rig_namespace: str = DEFAULT_NAMESPACE) -> RunData
                     maps.append(inverse_map_snapshot(m.msg))
                 except ValueError as err:
                     raise BagReadError(str(err), source) from err
+            elif m.topic in limits_topics and limits is not None:  # a tick's first: a reset has none
+                entry = (np.asarray(m.msg.commanded, dtype=np.float64), str(m.msg.trip))
+                limits.setdefault(header_stamp_ns(m.msg.header), entry)
             elif m.topic in description_topics:
                 urdf = str(m.msg.data)  # latched: the last one is the rig's current description
             else:
@@ -234,10 +266,11 @@ def load_run(bag: Path | str, rig_namespace: str = DEFAULT_NAMESPACE) -> RunData
         ticks=ticks,
         events=events,
         babbling_segments=_babbling(ticks, events),
-        attempts=_attempts(ticks, events),
+        attempts=_attempts(ticks, events, limits),
         inverse_maps=maps,
         configs=configs,
         leg_description=_leg_description(urdf, description_topic, source) if urdf is not None else None,
+        rig_limits=limits,
     )
 
 
@@ -280,7 +313,7 @@ def _babbling(ticks: Ticks, events: list[RunEvent]) -> list[Recording]:
     return segments
 
 
-def _attempts(ticks: Ticks, events: list[RunEvent]) -> list[AttemptData]:
+def _attempts(ticks: Ticks, events: list[RunEvent], limits: RigLimitsByStamp | None) -> list[AttemptData]:
     attempts = []
     for i, start in enumerate(events):
         if start.event != Event.ATTEMPT_START:
@@ -306,9 +339,23 @@ def _attempts(ticks: Ticks, events: list[RunEvent]) -> list[AttemptData]:
                 recording,
                 _per_joint(start, end, DESIRED_RAD),
                 _per_joint(start, end, "correction_rad_s"),
+                *_envelope(recording, limits),
             )
         )
     return attempts
+
+
+def _envelope(recording: Recording, limits: RigLimitsByStamp | None) -> tuple[int | None, str]:
+    """The ticks of `recording` whose applied activation differs from the one decided, and the first trip."""
+    if limits is None:
+        return None, ""
+    changed, trip = 0, ""
+    for t_s, applied in zip(recording.t_s, recording.activation, strict=True):
+        entry = limits.get(round(t_s * 1e9))  # the stamp, exact: t_s is stamp_ns * 1e-9
+        if entry is not None:
+            changed += bool(np.any(applied != entry[0]))
+            trip = trip or entry[1]
+    return changed, trip
 
 
 @dataclass(frozen=True)

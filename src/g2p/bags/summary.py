@@ -15,6 +15,7 @@ import numpy as np
 
 from g2p.bags.dataset import AttemptData, RunData
 from g2p.bags.events import FloatArray
+from g2p.envelope import stop_entry_speeds
 from g2p.run_events import Event
 
 # G2P_FACTS.md: exploration stops when an attempt's belt travel exceeds 64 mm.
@@ -206,6 +207,10 @@ def summary_tables(summary: Mapping[str, Any]) -> list[Table]:
             ("correction RMS (rad/s)", "correction_rms_rad_s"),
             ("sigma", "sigma"),
             ("near limit", "near_limit_fraction"),
+            ("stop entries", "stop_entries"),
+            ("fastest entry (rad/s)", "stop_entry_max_rad_s"),
+            ("envelope ticks", "envelope_ticks"),
+            ("trip", "trip"),
         )
         tables.append(
             Table(
@@ -242,7 +247,28 @@ def _attempt_summary(a: AttemptData, best: float, limits: FloatArray | None) -> 
         "near_limit_fraction": (
             near_limit_fraction(a.recording.position_rad, limits) if limits is not None else float("nan")
         ),
+        **_stop_entries(a.recording.position_rad, a.recording.velocity_rad_s, limits),
+        "envelope_ticks": a.envelope_ticks,
+        "trip": a.trip,
         "complete": a.end is not None,
+    }
+
+
+def _stop_entries(
+    position_rad: FloatArray, velocity_rad_s: FloatArray, limits: FloatArray | None
+) -> dict[str, Any]:
+    """How often, and how hard, the joints entered their stops (g2p.envelope.stop_entry_speeds)."""
+    if limits is None or not len(position_rad):
+        return {"stop_entries": 0, "stop_entry_max_rad_s": float("nan")}
+    speeds = np.concatenate(
+        [
+            stop_entry_speeds(position_rad[:, j], velocity_rad_s[:, j], (limits[j, 0], limits[j, 1]))
+            for j in range(2)
+        ]
+    )
+    return {
+        "stop_entries": len(speeds),
+        "stop_entry_max_rad_s": float(speeds.max()) if len(speeds) else 0.0,
     }
 
 
