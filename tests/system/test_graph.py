@@ -22,12 +22,14 @@ from g2p.babbling import BabblingConfig
 from g2p.bags import BagReader
 from g2p.bags.dataset import load_run, load_training_data
 from g2p.closed_loop import FeedbackConfig, Trajectory, TrajectoryTracker
+from g2p.envelope import replay
 from g2p.experiments import run_treadmill
 from g2p.inverse_map import InverseMap
 from g2p.learner import Learner, LearnerConfig
 from g2p.limit_cycle import LimitCycleConfig, attempt_kinematics
 from g2p.plant import TickSample
 from g2p.rig import PlantRig
+from g2p.safety import BASELINE_ACTIVATION
 from g2p.search import SearchConfig
 from g2p.sim import MujocoLeg, MujocoLegConfig
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
@@ -340,7 +342,11 @@ def test_a_closed_loop_run_records_what_the_rig_decided_tick_by_tick(tmp_path: P
         for k in range(1, len(rec)):
             measured = TickSample(*(getattr(rec, f.name)[k - 1] for f in dataclasses.fields(TickSample)))
             decided.append(tracker.next_activation(measured))
-        np.testing.assert_array_equal(np.array(decided), rec.activation)
+        # What the rig decided, as its rig_limits recorded it; applied through its safety envelope.
+        recorded = run.decided_activation(rec)
+        assert recorded is not None
+        np.testing.assert_array_equal(np.clip(decided, BASELINE_ACTIVATION, 1.0), recorded)
+        np.testing.assert_array_equal(replay(recorded, rec)[1:], rec.activation[1:])
         np.testing.assert_array_equal(tracker.correction_rad_s, attempt.correction_rad_s)
 
 

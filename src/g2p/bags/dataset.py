@@ -170,9 +170,8 @@ class RunData:
         """
         if self.rig_limits is None:
             return None
-        missing = (np.full(3, np.nan), "")
-        rows = [self.rig_limits.get(round(t * 1e9), missing)[0] for t in recording.t_s]
-        return np.array(rows).reshape(-1, 3)
+        entries = _rig_limits_at(self.rig_limits, recording.t_s)
+        return np.array([np.full(3, np.nan) if e is None else e[0] for e in entries]).reshape(-1, 3)
 
     @property
     def babbling(self) -> Recording:
@@ -350,12 +349,30 @@ def _envelope(recording: Recording, limits: RigLimitsByStamp | None) -> tuple[in
     if limits is None:
         return None, ""
     changed, trip = 0, ""
-    for t_s, applied in zip(recording.t_s, recording.activation, strict=True):
-        entry = limits.get(round(t_s * 1e9))  # the stamp, exact: t_s is stamp_ns * 1e-9
+    for applied, entry in zip(recording.activation, _rig_limits_at(limits, recording.t_s), strict=True):
         if entry is not None:
             changed += bool(np.any(applied != entry[0]))
             trip = trip or entry[1]
     return changed, trip
+
+
+def _rig_limits_at(limits: RigLimitsByStamp, t_s: FloatArray) -> list[tuple[FloatArray, str] | None]:
+    """Each tick's `rig_limits` entry (None when it has none), found by the tick's stamp.
+
+    `t_s` is stamp_ns * 1e-9 in float64: system-time stamps keep about 0.2 us of error, so a tick takes
+    the nearest stamp within 1 us (ticks are 12.8 ms apart).
+    """
+    keys = np.array(sorted(limits), dtype=np.int64)
+    if not len(keys):
+        return [None] * len(t_s)
+    wanted = np.asarray(t_s, dtype=np.float64) * 1e9
+    right = np.clip(np.searchsorted(keys, wanted), 0, len(keys) - 1)
+    left = np.clip(right - 1, 0, len(keys) - 1)
+    nearest = np.where(np.abs(keys[left] - wanted) < np.abs(keys[right] - wanted), left, right)
+    return [
+        limits[int(keys[k])] if abs(keys[k] - w) <= 1000.0 else None
+        for k, w in zip(nearest, wanted, strict=True)
+    ]
 
 
 @dataclass(frozen=True)
