@@ -194,7 +194,7 @@ class TickPublisher:
                 header=Header(stamp=time_from_ns(self.last_stamp_ns)),
                 commanded=action.commanded,
                 joint_scale=action.joint_scale,
-                brake=action.brake,
+                ramp_cap=action.ramp_cap,
                 thermal_scale=action.thermal_scale,
                 winding_estimate_c=action.winding_c,
                 trip=trip,

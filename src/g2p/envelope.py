@@ -7,10 +7,15 @@ same rules:
 
 - **Soft joint limits** (ros2_control's joint_limits soft limits are the model): while a client drives
   the rig (a motor above baseline), a joint may move toward a stop at no more than
-  `impact_speed_rad_s + k_position * (distance ahead - margin)`. Beyond that speed the tendons that turn
-  it away from the stop (its antagonists) are raised by up to `brake_activation`, by `k_velocity` per
-  rad/s of excess, so that the joint is braked before it strikes; with `scale_drivers` the tendons that
-  drive it there are also scaled down toward baseline by the excess.
+  `impact_speed_rad_s + k_position * (distance ahead - margin)`. Beyond that speed the tendons that drive
+  it there are scaled down toward baseline, by `k_velocity` per rad/s of excess.
+- **A ramp for steps** (the torque ramp of a motor driver, as ODrive's and VESC's): a motor's activation
+  rises by at most `max_step` in one tick, and a motor still short of a larger step climbs on at
+  `ramp_per_tick`; falls pass at once. A command that rises smoothly (G2P's limit cycles rise by about
+  0.17 a tick at the 99th percentile) passes; a stair step from baseline to 1 (babbling, a square wave)
+  takes 12 ticks. Every tendon stepped at once (a square wave: one let go as two pull) throws the shank into its
+  stop faster than a rule acting on measured speeds can brake it, one tick late and behind the motors'
+  lag; the ramp spreads the step.
 - **A thermal budget per motor** (I^2 t, as motor drivers protect windings): each winding's temperature is
   estimated with the rated first-order thermal model from the current its current-mode driver regulates,
   the applied activation times the current at activation 1. The supply voltage only lowers the true
@@ -19,9 +24,8 @@ same rules:
   `derate_start_c` the motor's activation above baseline is scaled down, to baseline at `derate_full_c`,
   below the drivers' cut-out. The motor cools at baseline and comes back as it cools.
 
-Both act only on the part of an activation above baseline, except the brake, which raises an
-antagonist above it. The envelope's state (the temperature estimates) lives across ticks and resets, as
-the windings' heat does.
+Each only lowers an activation above baseline. The envelope's state (the temperature estimates, the
+last activation) lives across ticks and resets, as the windings' heat does.
 """
 
 from __future__ import annotations
@@ -80,8 +84,9 @@ class EnvelopeConfig:
         horizon_s: the distance is taken where the joint will be this much later at its speed (s): the
             tick's delay and the motors' lag.
         k_velocity: the excess's measure per rad/s above the allowed speed (s/rad); 1 = full.
-        scale_drivers: scale the tendons that turn a joint toward its stop down by the excess.
-        brake_activation: the activation added to a joint's antagonists at full excess (dimensionless).
+        max_step: the most a motor's activation rises in one tick (dimensionless); 1 = no ramp.
+        ramp_per_tick: the rise per tick of a motor still short of a step larger than `max_step`
+            (dimensionless; 0.06 at 78 Hz is 4.7 /s).
         winding: the motors' rated thermal model.
         derate_start_c: estimated winding temperature from which a motor is derated (deg C).
         derate_full_c: estimated winding temperature at which a motor is held at baseline (deg C).
@@ -97,8 +102,8 @@ class EnvelopeConfig:
     k_position: float = 5.0
     horizon_s: float = 0.1
     k_velocity: float = 1.0
-    scale_drivers: bool = True
-    brake_activation: float = 0.0
+    max_step: float = 0.2
+    ramp_per_tick: float = 0.06
     winding: WindingRating = field(default_factory=WindingRating)
     derate_start_c: float = 72.0
     derate_full_c: float = 78.0
@@ -114,10 +119,12 @@ class EnvelopeConfig:
             "k_position",
             "horizon_s",
             "k_velocity",
-            "brake_activation",
         ):
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value}")
+        for name in ("max_step", "ramp_per_tick"):
+            value = getattr(self, name)
+            require(0 < value <= 1, name, f"must be in (0, 1], got {value}")
         require(
             self.winding.ambient_c < self.derate_start_c < self.derate_full_c <= self.trip_c,
             "derate_start_c",
@@ -134,7 +141,7 @@ class EnvelopeAction:
         commanded: the activation asked for, shape (3,).
         applied: the activation it let through, shape (3,).
         joint_scale: each motor's scale from the soft joint limits, shape (3,) (1 = untouched).
-        brake: each motor's raise as an antagonist, shape (3,) (activation added).
+        ramp_cap: the highest activation the ramp let each motor reach, shape (3,) (1 = no cap).
         thermal_scale: each motor's scale from its thermal budget, shape (3,) (1 = untouched).
         winding_c: each winding's estimated temperature when the tick began, shape (3,) (deg C).
     """
@@ -142,7 +149,7 @@ class EnvelopeAction:
     commanded: FloatArray
     applied: FloatArray
     joint_scale: FloatArray
-    brake: FloatArray
+    ramp_cap: FloatArray
     thermal_scale: FloatArray
     winding_c: FloatArray
 
@@ -170,11 +177,14 @@ class SafetyEnvelope:
         stops = np.array([config.proximal_stops_rad, config.distal_stops_rad])  # (2, 2): joint, (low, up)
         self._lower, self._upper = stops[:, 0], stops[:, 1]
         self._last_t_s: float | None = None
+        # The motors' activation over the last tick: a rig starts at baseline.
+        self._last_activation = np.full(N_MOTORS, baseline_activation)
+        self._short = np.zeros(N_MOTORS, dtype=bool)  # motors the ramp held below their last command
 
     def limit(
         self, activation: FloatArray, position_rad: FloatArray | None, velocity_rad_s: FloatArray | None
     ) -> EnvelopeAction:
-        """The activation to apply during the coming tick.
+        """The activation to apply during the coming tick; call it once a tick (the ramp keeps count).
 
         Args:
             activation: the activation decided (3,); clipped to [baseline, 1] first, as the plant would.
@@ -186,7 +196,6 @@ class SafetyEnvelope:
         # What the rig would apply without the envelope (a tracker's output may leave [baseline, 1]).
         activation = np.clip(activation, base, 1.0)
         joint_scale = np.ones(N_MOTORS)
-        brake = np.zeros(N_MOTORS)
         # Only while a client drives the rig (a motor above baseline): the rig's own baseline (idle, after
         # a cancel, a fault or a stop) stays baseline.
         driven = bool(np.any(activation > base))
@@ -200,23 +209,21 @@ class SafetyEnvelope:
                 excess = np.clip((toward - allowed) * cfg.k_velocity, 0.0, 1.0)  # (2,) per joint
                 drives = TENDON_DIRECTIONS * side  # (3, 2): +1 for a tendon that turns the joint that way
                 for j in np.flatnonzero(excess):
-                    if cfg.scale_drivers:
-                        scale = np.where(drives[:, j] > 0, 1.0 - excess[j], 1.0)
-                        joint_scale = np.minimum(joint_scale, scale)
-                    raised = np.where(drives[:, j] < 0, cfg.brake_activation * excess[j], 0.0)
-                    brake = np.maximum(brake, raised)
+                    joint_scale = np.minimum(joint_scale, np.where(drives[:, j] > 0, 1.0 - excess[j], 1.0))
         span = cfg.derate_full_c - cfg.derate_start_c
         thermal_scale = np.clip((cfg.derate_full_c - self.winding_c) / span, 0.0, 1.0)
         scale = joint_scale * thermal_scale
         # Untouched motors keep their activation bit for bit: (a - base) + base need not equal a.
         applied = np.where(scale < 1.0, base + (activation - base) * scale, activation)
-        braked = np.minimum(np.maximum(applied, base + brake * thermal_scale), 1.0)
-        applied = np.where(brake > 0.0, braked, applied)
+        rise = np.where(self._short, min(cfg.ramp_per_tick, cfg.max_step), cfg.max_step)
+        ramp_cap = np.minimum(self._last_activation + rise, 1.0)
+        self._short = applied > ramp_cap
+        applied = np.minimum(applied, ramp_cap)
         return EnvelopeAction(
             commanded=activation.copy(),
             applied=applied,
             joint_scale=joint_scale,
-            brake=brake,
+            ramp_cap=ramp_cap,
             thermal_scale=thermal_scale,
             winding_c=self.winding_c.copy(),
         )
@@ -238,6 +245,7 @@ class SafetyEnvelope:
         The first observation (and one whose time goes back) only sets the clock.
         """
         last, self._last_t_s = self._last_t_s, t_s
+        self._last_activation = np.array(activation, dtype=np.float64)
         if last is None or t_s <= last:
             return
         w = self.config.winding

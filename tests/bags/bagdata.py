@@ -110,15 +110,15 @@ def rig_messages(messages: Messages, k: int, stamp: int) -> dict[str, Any]:
 
 
 def rig_limits_message(messages: Messages, k: int, stamp: int) -> Any:
-    """Synthetic tick k's RigLimits: the envelope raised M2 by 0.1 on every tick with k % 10 == 3."""
+    """Synthetic tick k's RigLimits: the envelope's ramp held M2 0.1 below its command when k % 10 == 3."""
     applied = tick_values(k)["activation"]
     changed = k % 10 == 3
     return messages.make(
         "g2p_interfaces/msg/RigLimits",
         header=messages.header(stamp),
-        commanded=applied - np.array([0.0, 0.0, 0.1 if changed else 0.0]),
+        commanded=applied + np.array([0.0, 0.0, 0.1 if changed else 0.0]),
         joint_scale=np.ones(3),
-        brake=np.array([0.0, 0.0, 0.1 if changed else 0.0]),
+        ramp_cap=np.where([False, False, changed], applied, 1.0),
         thermal_scale=np.ones(3),
         winding_estimate_c=np.full(3, 25.0),
         trip="",

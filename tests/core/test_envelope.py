@@ -45,7 +45,7 @@ def test_the_thermal_estimate_is_the_first_order_solution_of_the_regulated_curre
 
 
 def test_a_hot_motor_is_derated_toward_baseline_and_trips_only_at_its_cut_out() -> None:
-    config = EnvelopeConfig()
+    config = EnvelopeConfig(max_step=1.0)  # no ramp from rest: the thermal scale alone
     envelope = SafetyEnvelope(config)
     midway = 0.5 * (config.derate_start_c + config.derate_full_c)
     envelope.winding_c = np.array([25.0, midway, config.derate_full_c])
@@ -58,15 +58,14 @@ def test_a_hot_motor_is_derated_toward_baseline_and_trips_only_at_its_cut_out() 
     assert "M0's winding" in envelope.trip
 
 
-def test_soft_limits_raise_the_antagonists_of_a_joint_flying_at_its_stop_and_scale_its_drivers() -> None:
-    config = EnvelopeConfig(soft_limits=True, scale_drivers=True, brake_activation=0.6)
-    envelope = SafetyEnvelope(config)
+def test_soft_limits_scale_the_drivers_of_a_joint_flying_at_its_stop() -> None:
+    envelope = SafetyEnvelope(EnvelopeConfig(soft_limits=True, max_step=1.0))  # no ramp from rest
     # The knee 0.2 rad from its upper stop (0), extending at 10 rad/s: M0 extends it, M2 flexes it.
     a = np.array([0.8, 0.5, 0.2])
     action = envelope.limit(a, np.array([0.0, -0.2]), np.array([0.0, 10.0]))
     assert action.applied[0] < a[0]  # the driver, scaled down
     assert action.applied[1] == a[1]  # M1 does not turn the knee
-    assert action.applied[2] > a[2]  # the antagonist, raised
+    assert action.applied[2] == a[2]  # the antagonist, untouched
     # Far from the stops, or slow, or moving away: untouched.
     for q, v in (([0.0, -0.9], [0.0, 3.0]), ([0.0, -0.2], [0.0, 1.0]), ([0.0, -0.2], [0.0, -5.0])):
         assert not envelope.limit(a, np.array(q), np.array(v)).acted
@@ -74,8 +73,43 @@ def test_soft_limits_raise_the_antagonists_of_a_joint_flying_at_its_stop_and_sca
     assert not envelope.limit(
         np.full(3, BASELINE_ACTIVATION), np.array([0.0, -0.2]), np.array([0.0, 10.0])
     ).acted
-    off = SafetyEnvelope(EnvelopeConfig(soft_limits=False))
+    off = SafetyEnvelope(EnvelopeConfig(soft_limits=False, max_step=1.0))
     assert not off.limit(a, np.array([0.0, -0.2]), np.array([0.0, 10.0])).acted
+
+
+def test_the_ramp_spreads_a_step_lets_a_smooth_rise_and_a_fall_through() -> None:
+    cfg = EnvelopeConfig(soft_limits=False)
+    envelope = SafetyEnvelope(cfg)
+    base = np.full(3, BASELINE_ACTIVATION)
+    # A rig starts at baseline: its first command is ramped from there.
+    np.testing.assert_allclose(envelope.limit(ONES, None, None).applied, base + cfg.max_step)
+    envelope = SafetyEnvelope(cfg)
+    t = 0.0
+
+    def tick(command: np.ndarray) -> np.ndarray:
+        nonlocal t
+        applied = envelope.limit(command, None, None).applied
+        t += 0.0128
+        envelope.observe(t, applied)
+        return applied
+
+    tick(base)
+    # A step of M0 from baseline to 1: max_step in the first tick, then ramp_per_tick until it is there.
+    # M1's step of 0.15 is within max_step; M2 stays.
+    step = np.array([1.0, BASELINE_ACTIVATION + 0.15, BASELINE_ACTIVATION])
+    climb = [tick(step) for _ in range(20)]
+    expected_m0 = np.minimum(BASELINE_ACTIVATION + cfg.max_step + cfg.ramp_per_tick * np.arange(20), 1.0)
+    np.testing.assert_allclose([a[0] for a in climb], expected_m0, rtol=1e-12)
+    assert all(a[1] == step[1] and a[2] == step[2] for a in climb)
+    # A fall to baseline (a cancel, a stop) is applied at once.
+    np.testing.assert_array_equal(tick(base), base)
+    # A smooth rise of 0.15 a tick (a limit cycle's) passes untouched.
+    for k in range(1, 6):
+        smooth = base + np.array([0.15 * k, 0.1 * k, 0.0])
+        action = envelope.limit(smooth, None, None)
+        assert not action.acted
+        t += 0.0128
+        envelope.observe(t, action.applied)
 
 
 def test_garbage_at_activation_1_for_a_minute_cannot_overheat_a_motor() -> None:
@@ -136,24 +170,26 @@ def _knee_entries(envelope: EnvelopeConfig, activations: np.ndarray) -> tuple[np
 
 def test_a_knee_slammed_into_its_stop_is_slowed() -> None:
     # The two-phase square wave for 30 s: its slams build up over the first 15 s (docs/RESULTS.md, "The rig's
-    # limits": knee p95 21.1 rad/s, max 30.7, without soft limits; 12.7 and 15.0 with them).
+    # limits": knee p95 21.1 rad/s, max 30.7, without the envelope's joint rules; with them, p95 6.2 to 8.6
+    # over six seeds of the simulated rig, the issue's goal 10).
     square = _square_wave(30.0, MujocoLegConfig().tick_hz)
-    raw, _ = _knee_entries(EnvelopeConfig(soft_limits=False), square)
+    raw, _ = _knee_entries(EnvelopeConfig(soft_limits=False, max_step=1.0), square)
     limited, changed = _knee_entries(EnvelopeConfig(), square)
     assert len(raw) >= 20 and len(limited) >= 20 and changed > 0
-    assert np.percentile(limited, 95) < 0.8 * np.percentile(raw, 95)
-    assert np.max(limited) < 0.7 * np.max(raw)
+    assert np.percentile(limited, 95) <= 10.0 and np.percentile(raw, 95) > 15.0
+    assert np.max(limited) < 0.5 * np.max(raw)
 
 
 def test_babbling_and_a_short_g2p_run_pass_the_envelope_almost_untouched() -> None:
-    # Measured over a whole default run (docs/RESULTS.md, "The rig's limits"): the envelope changes 3.4 % of
-    # babbling's ticks and 3.9 % of the attempts'. This short run's first attempts strike harder (8.1 % of
-    # its attempt ticks): the bounds leave room for that, not for more.
+    # Measured over a whole default run (docs/RESULTS.md, "The rig's limits"): the envelope changes 12.5 % of
+    # babbling's ticks, most of them the ramp's climb after a stair step, and 6.2 % of the attempts'. This
+    # short run's 60 s of babbling: 13.7 %, its 3 short attempts 12.6 % (each starts from rest); the bounds
+    # leave room for that, not for more.
     learner = Learner(LearnerConfig(babbling=BabblingConfig(duration_s=60.0)))
     rig = PlantRig(MujocoLeg(MujocoLegConfig()))
     learner.babble(rig)
     babbled, babbling_changed = rig.counters.ticks, rig.counters.envelope_ticks
-    assert babbling_changed / babbled < 0.06
+    assert babbling_changed / babbled < 0.16
     run = TreadmillRun(
         learner,
         SearchConfig(max_exploration_attempts=3, exploitation_attempts=3),
@@ -163,5 +199,5 @@ def test_babbling_and_a_short_g2p_run_pass_the_envelope_almost_untouched() -> No
     while not run.finished:
         run.next_attempt(rig)
     attempts = rig.counters.ticks - babbled
-    assert attempts > 0 and (rig.counters.envelope_ticks - babbling_changed) / attempts < 0.12
+    assert attempts > 0 and (rig.counters.envelope_ticks - babbling_changed) / attempts < 0.16
     assert rig.counters.trips == 0

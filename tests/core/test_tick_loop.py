@@ -7,11 +7,15 @@ import time
 import numpy as np
 import pytest
 
+from g2p.envelope import EnvelopeConfig
 from g2p.plant import NOMINAL_TICK_HZ, TickSample
 from g2p.safety import BASELINE_ACTIVATION
 from g2p.tick_loop import CommandOutcome, Job, Pacing, Tick, TickLoop, TickLoopConfig
 
 BASE = np.full(3, BASELINE_ACTIVATION)
+# The loop's plumbing, without the envelope's joint rules (tests/core/test_envelope.py tests those): the
+# ledger's joint angle is a running sum, and its steps are any size.
+PLUMBING = EnvelopeConfig(soft_limits=False, max_step=1.0)
 
 
 class LedgerPlant:
@@ -71,7 +75,7 @@ class Receiver:
 
 def caller_loop(plant: LedgerPlant, pacing: Pacing = Pacing.PLANT, **kwargs) -> tuple[TickLoop, Receiver]:
     receiver = Receiver(kwargs.pop("deliver", True))
-    loop = TickLoop(plant, pacing, TickLoopConfig(fast_max_real_time_factor=0.0, **kwargs), receiver)
+    loop = TickLoop(plant, pacing, TickLoopConfig(fast_max_real_time_factor=0.0, envelope=PLUMBING, **kwargs), receiver)
     loop.start(threaded=False)
     return loop, receiver
 
@@ -189,7 +193,7 @@ def test_a_reset_waits_for_no_job_and_leaves_baseline() -> None:
 def test_a_plant_fault_fails_the_job_and_drops_to_baseline() -> None:
     plant = LedgerPlant(fail_at=3)
     faults: list[Exception] = []
-    loop = TickLoop(plant, Pacing.PLANT, TickLoopConfig(), on_fault=faults.append)
+    loop = TickLoop(plant, Pacing.PLANT, TickLoopConfig(envelope=PLUMBING), on_fault=faults.append)
     loop.start(threaded=False)
     job = Job(activations=np.full((5, 3), 0.9))
     play(loop, job, ticks=3)
@@ -203,7 +207,7 @@ def test_a_plant_fault_fails_the_job_and_drops_to_baseline() -> None:
 def test_stop_ends_the_job_releases_a_reset_and_ends_on_a_baseline_tick() -> None:
     plant = LedgerPlant()
     receiver = Receiver()
-    loop = TickLoop(plant, Pacing.ON_DEMAND, TickLoopConfig(fast_max_real_time_factor=1.0), receiver)
+    loop = TickLoop(plant, Pacing.ON_DEMAND, TickLoopConfig(fast_max_real_time_factor=1.0, envelope=PLUMBING), receiver)
     loop.start()
     job = Job(activations=np.full((7800, 3), 0.7))  # 100 s at real-time pace: playing at the stop
     assert loop.reserve()
@@ -220,7 +224,7 @@ def test_stop_ends_the_job_releases_a_reset_and_ends_on_a_baseline_tick() -> Non
 
 
 def test_a_job_given_to_a_stopped_loop_ends_at_once() -> None:
-    loop = TickLoop(LedgerPlant(), Pacing.PLANT)
+    loop = TickLoop(LedgerPlant(), Pacing.PLANT, TickLoopConfig(envelope=PLUMBING))
     job = Job(activations=np.full((2, 3), 0.5))
     loop.play(job)
     assert job.done.is_set() and job.error == "rig is not running"
@@ -236,7 +240,7 @@ def test_a_failed_heartbeat_is_a_fault_and_the_idle_loop_goes_on() -> None:
         if tick.then is not None:
             tick.then()
 
-    loop = TickLoop(plant, Pacing.ON_DEMAND, TickLoopConfig(), receiver, faults.append)
+    loop = TickLoop(plant, Pacing.ON_DEMAND, TickLoopConfig(envelope=PLUMBING), receiver, faults.append)
     loop.start()
     try:
         deadline = time.monotonic() + 30.0

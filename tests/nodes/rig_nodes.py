@@ -120,6 +120,11 @@ class RigPeer(RosPeer):
         with self.lock:
             return [list(m.activation) for m in self.received[contract.APPLIED_ACTIVATION]]
 
+    def decided(self) -> list[list[float]]:
+        """Each tick's activation as the rig decided it, before its safety envelope (`rig_limits`)."""
+        with self.lock:
+            return [list(m.commanded) for m in self.received[contract.RIG_LIMITS]]
+
     def wait_for_rig(self) -> None:
         assert self.action.wait_for_server(timeout_sec=30.0), "the rig's run_activations never appeared"
         assert self.trajectory.wait_for_server(timeout_sec=30.0), "the rig's run_trajectory never appeared"

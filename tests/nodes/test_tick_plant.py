@@ -172,9 +172,10 @@ def test_an_invalid_action_publishes_nothing_and_close_leaves_baseline(tmp_path:
         time.sleep(0.5)  # a (wrong) command or tick would arrive within this
         assert (len(peer.commands), len(peer.applied)) == (commands, ticks)
         assert peer.applied[-1] == [BASELINE] * 3
-        # The next valid command plays the next tick (lockstep), and returns it.
-        sample = peer.plant.step(np.array([0.2, 0.9, 0.1]))
-        np.testing.assert_array_equal(sample.activation, [0.2, 0.9, BASELINE])
+        # The next valid command plays the next tick (lockstep), and returns it (a rise within the
+        # envelope's ramp).
+        sample = peer.plant.step(np.array([0.2, 0.3, 0.1]))
+        np.testing.assert_array_equal(sample.activation, [0.2, 0.3, BASELINE])
         assert sample.t_s > rest.t_s
         wait_until(lambda: len(peer.applied) == ticks + 1, 10.0, "the valid command's tick")
         # close: one baseline command, which the fast rig plays as one tick.
@@ -203,8 +204,15 @@ def test_realtime_a_command_takes_effect_a_tick_later_and_the_watchdog_drops_a_s
     start: a command arrives during the tick returned for it (the first stamped after it) and plays the
     next one, so each step's tick shows the previous step's command."""
     # The applied activations tell which command played: the soft limits, which change them near the
-    # stops, are off here (the envelope's thermal budget stays far from derating).
-    sim = start_sim(tmp_path, "time_mode:=realtime", f"leg.seed:={SEED}", "rig.envelope.soft_limits:=false")
+    # stops, and the ramp, which spreads their steps, are off here (the envelope's thermal budget stays
+    # far from derating).
+    sim = start_sim(
+        tmp_path,
+        "time_mode:=realtime",
+        f"leg.seed:={SEED}",
+        "rig.envelope.soft_limits:=false",
+        "rig.envelope.max_step:=1.0",
+    )
     peer = TickPeer(sim_time=False)  # system time, as on the hardware
     commands = np.random.default_rng(1).uniform(0.2, 0.9, (100, 3))
     try:
