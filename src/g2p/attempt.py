@@ -43,7 +43,8 @@ class AttemptOutcome:
     Attributes:
         features: the limit cycle's features, shape (10,).
         desired: target kinematics, one row per tick, shape (N, 6) (rad, rad/s, rad/s^2).
-        activations: activations commanded (open loop) or decided by the rig (closed loop), shape (N, 3).
+        activations: activations commanded (open loop) or those the rig applied (closed loop: the tracker's
+            decisions through the rig's envelope), shape (N, 3).
         recording: the N ticks the rig recorded.
         reward_mm: belt travel during the attempt (mm, + backward = forward locomotion).
         energy_j: electrical energy the motors drew during the attempt (J).
