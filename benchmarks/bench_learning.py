@@ -19,6 +19,7 @@ left out of the figures and written to failures.json; the benchmark then exits w
 Variants for measurements (docs/ALGORITHM.md, "Tracking on the simulated rig"):
     --set preprocess.command_lead_ticks=2 --set inverse_map.normalization=zscore   (LearnerConfig fields)
     --set "cycle.radius_rad=(-0.8, 0.75)"   (LimitCycleConfig fields: centre, spoke scale, period)
+    --set envelope.soft_limits=False --set envelope.max_step=1.0   (EnvelopeConfig fields: the rig's envelope)
     --model path/to/leg.xml     (another MJCF for the simulated rig)
     --calibration paper         (a calibration of the simulated rig: a file or a packaged name)
     --train 15                  (generalization training trajectories; the paper's 30 by default)

@@ -12,12 +12,14 @@ import time
 from dataclasses import dataclass, replace
 from typing import Any
 
+from g2p.envelope import EnvelopeConfig
 from g2p.experiments import run_treadmill
 from g2p.learner import Learner, LearnerConfig
 from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig
 from g2p.rig import PlantRig
 from g2p.search import SearchConfig
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, MujocoLeg, MujocoLegConfig
+from g2p.tick_loop import TickLoopConfig
 
 
 @dataclass(frozen=True)
@@ -26,7 +28,8 @@ class Setup:
 
     Attributes:
         overrides: (section, field, value): section "preprocess" or "inverse_map" for LearnerConfig,
-            "cycle" for the limit cycles (LimitCycleConfig).
+            "cycle" for the limit cycles (LimitCycleConfig), "envelope" for the rig's safety envelope
+            (EnvelopeConfig).
         model_path: MJCF of the simulated rig; "" = the packaged leg.
         n_train: generalization training trajectories (paper: 30).
         calibration: calibration of the simulated rig (MujocoLegConfig.calibration); "" = none.
@@ -41,7 +44,7 @@ class Setup:
         """The default LearnerConfig with this setup's overrides."""
         cfg = LearnerConfig(seed=seed)
         for section, name, value in self.overrides:
-            if section != "cycle":
+            if section in ("preprocess", "inverse_map"):
                 cfg = replace(cfg, **{section: replace(getattr(cfg, section), **{name: value})})
         return cfg
 
@@ -57,16 +60,20 @@ class Setup:
         cfg = MujocoLegConfig(seed=seed, model_path=self.model_path, calibration=self.calibration)
         if carriage_height_m is not None:
             cfg = replace(cfg, carriage_height_m=carriage_height_m)
-        return PlantRig(MujocoLeg(cfg))
+        envelope = EnvelopeConfig(
+            **{name: value for section, name, value in self.overrides if section == "envelope"}
+        )
+        return PlantRig(MujocoLeg(cfg), config=TickLoopConfig(envelope=envelope))
 
 
 def parse_override(text: str) -> tuple[str, str, Any]:
     """'preprocess.command_lead_ticks=2' -> ('preprocess', 'command_lead_ticks', 2)."""
     key, sep, raw = text.partition("=")
     section, dot, name = key.partition(".")
-    if not sep or not dot or section not in ("preprocess", "inverse_map", "cycle"):
+    if not sep or not dot or section not in ("preprocess", "inverse_map", "cycle", "envelope"):
         raise argparse.ArgumentTypeError(
-            f"expected preprocess.FIELD=VALUE, inverse_map.FIELD=VALUE or cycle.FIELD=VALUE, got {text!r}"
+            f"expected preprocess.FIELD=VALUE, inverse_map.FIELD=VALUE, cycle.FIELD=VALUE or "
+            f"envelope.FIELD=VALUE, got {text!r}"
         )
     try:
         value = ast.literal_eval(raw)
