@@ -5,8 +5,8 @@ simulated rig with its limits) and measured at the ticks and at the physics sub-
 
 - the joints' speeds entering their stops (median, 95th percentile, max over the entries, from the ticks'
   joint velocities; g2p.envelope.stop_entry_speeds), and how many entries;
-- the tendons' peak tension (sub-steps) and the ticks beyond the rated tension; the most cable paid out
-  into a slack tendon;
+- the tendons' peak tension (sub-steps) and the ticks beyond the rated tension; the share of ticks each
+  tendon carried no force at all (slack); the most cable paid out into a slack tendon;
 - the motors' RMS current and copper loss, the hottest winding;
 - the belt travel, the ticks the envelope changed, and the trip (if one ended the pattern).
 
