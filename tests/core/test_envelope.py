@@ -170,14 +170,15 @@ def _knee_entries(envelope: EnvelopeConfig, activations: np.ndarray) -> tuple[np
 
 def test_a_knee_slammed_into_its_stop_is_slowed() -> None:
     # The two-phase square wave for 30 s: its slams build up over the first 15 s (docs/RESULTS.md, "The rig's
-    # limits": knee p95 21.1 rad/s, max 30.7, without the envelope's joint rules; with them, p95 6.2 to 8.6
-    # over six seeds of the simulated rig, the issue's goal 10).
+    # limits": over six seeds of the simulated rig, knee p95 15.3-21.1 rad/s and max 21.1-30.7 without the
+    # envelope's joint rules, p95 6.2-8.6 and max 7.6-11.9 with them; the goal is p95 <= 10). The bounds
+    # hold on every one of those seeds: a CPU whose float sums differ plays this seed like another.
     square = _square_wave(30.0, MujocoLegConfig().tick_hz)
     raw, _ = _knee_entries(EnvelopeConfig(soft_limits=False, max_step=1.0), square)
     limited, changed = _knee_entries(EnvelopeConfig(), square)
     assert len(raw) >= 20 and len(limited) >= 20 and changed > 0
-    assert np.percentile(limited, 95) <= 10.0 and np.percentile(raw, 95) > 15.0
-    assert np.max(limited) < 0.5 * np.max(raw)
+    assert np.percentile(limited, 95) <= 10.0 and np.percentile(raw, 95) > 12.0
+    assert np.max(limited) < 0.7 * np.max(raw)
 
 
 def test_babbling_and_a_short_g2p_run_pass_the_envelope_almost_untouched() -> None:
