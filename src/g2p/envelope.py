@@ -13,9 +13,9 @@ same rules:
   rises by at most `max_step` in one tick, and a motor still short of a larger step climbs on at
   `ramp_per_tick`; falls pass at once. A command that rises smoothly (G2P's limit cycles rise by about
   0.17 a tick at the 99th percentile) passes; a stair step from baseline to 1 (babbling, a square wave)
-  takes 12 ticks. Every tendon stepped at once (a square wave: one let go as two pull) throws the shank into its
-  stop faster than a rule acting on measured speeds can brake it, one tick late and behind the motors'
-  lag; the ramp spreads the step.
+  takes 12 ticks. Every tendon stepped at once (a square wave: one let go as two pull) throws the shank
+  into its stop faster than a rule acting on measured speeds can brake it, one tick late and behind the
+  motors' lag; the ramp spreads the step.
 - **A thermal budget per motor** (I^2 t, as motor drivers protect windings): each winding's temperature is
   estimated with the rated first-order thermal model from the current its current-mode driver regulates,
   the applied activation times the current at activation 1. The supply voltage only lowers the true

@@ -75,7 +75,9 @@ class Receiver:
 
 def caller_loop(plant: LedgerPlant, pacing: Pacing = Pacing.PLANT, **kwargs) -> tuple[TickLoop, Receiver]:
     receiver = Receiver(kwargs.pop("deliver", True))
-    loop = TickLoop(plant, pacing, TickLoopConfig(fast_max_real_time_factor=0.0, envelope=PLUMBING, **kwargs), receiver)
+    loop = TickLoop(
+        plant, pacing, TickLoopConfig(fast_max_real_time_factor=0.0, envelope=PLUMBING, **kwargs), receiver
+    )
     loop.start(threaded=False)
     return loop, receiver
 
@@ -207,7 +209,9 @@ def test_a_plant_fault_fails_the_job_and_drops_to_baseline() -> None:
 def test_stop_ends_the_job_releases_a_reset_and_ends_on_a_baseline_tick() -> None:
     plant = LedgerPlant()
     receiver = Receiver()
-    loop = TickLoop(plant, Pacing.ON_DEMAND, TickLoopConfig(fast_max_real_time_factor=1.0, envelope=PLUMBING), receiver)
+    loop = TickLoop(
+        plant, Pacing.ON_DEMAND, TickLoopConfig(fast_max_real_time_factor=1.0, envelope=PLUMBING), receiver
+    )
     loop.start()
     job = Job(activations=np.full((7800, 3), 0.7))  # 100 s at real-time pace: playing at the stop
     assert loop.reserve()
