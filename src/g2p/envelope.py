@@ -141,7 +141,8 @@ class EnvelopeAction:
         commanded: the activation asked for, shape (3,).
         applied: the activation it let through, shape (3,).
         joint_scale: each motor's scale from the soft joint limits, shape (3,) (1 = untouched).
-        ramp_cap: the highest activation the ramp let each motor reach, shape (3,) (1 = no cap).
+        ramp_cap: the highest activation the ramp let each motor reach: its last activation plus the rise
+            allowed this tick, at most 1, shape (3,).
         thermal_scale: each motor's scale from its thermal budget, shape (3,) (1 = untouched).
         winding_c: each winding's estimated temperature when the tick began, shape (3,) (deg C).
     """
