@@ -7,21 +7,33 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 from rclpy import executors
 from rclpy.executors import Executor
-from rclpy.task import Future
+from rclpy.task import Future, Task
 
 STOP_TIMEOUT_S = 5.0
 FUTURE_POLL_S = 0.002
+# How long the spinning thread sleeps when the callback it is handed waits in the pool's queue already (s).
+QUEUED_POLL_S = 0.001
 # How long a shutdown waits for the callbacks the executor's threads still run (s), within the 5 s that
 # `ros2 launch` grants a stopping process before it escalates.
 CALLBACKS_TIMEOUT_S = 3.0
 
 
 class MultiThreadedExecutor(executors.MultiThreadedExecutor):
-    """rclpy's MultiThreadedExecutor, whose `shutdown` waits for the callbacks its threads run first.
+    """rclpy's MultiThreadedExecutor, handing each callback to its threads once, shutting down last.
+
+    rclpy's (9.1.2 on Kilted, 7.1.6 on Jazzy; ros2/rclpy#1452, fixed upstream by ros2/rclpy#1547) yields a
+    callback again as long as no pool thread has started it, and queues it again each time: while it
+    waits in the pool's queue, the spinning thread loops without waiting, holding the GIL the pool's
+    threads need to start it, and its list of futures grows by one per loop. The fast simulator in
+    lockstep then ran at 100 % CPU while idle, and a command's tick came after up to 6.9 s (1,000 steps:
+    median 46 ms, 209 steps over 200 ms; a client's 5 s wait for its tick failed). Here a callback already
+    queued is not queued again: the spinning thread sleeps `QUEUED_POLL_S` instead, letting a pool
+    thread take it.
 
     rclpy's (9.1.2 on Kilted, 7.1.6 on Jazzy) destroys its guard condition at once: `Executor.shutdown`
     skips its wait for outstanding work (it tests the flag it has just set), Kilted's override joins the
@@ -31,6 +43,45 @@ class MultiThreadedExecutor(executors.MultiThreadedExecutor):
     Destroyable because destruction was requested" (the learner, in 1 of 10 stops of the fast graph).
     Call `shutdown` once nothing spins the executor any more, before destroying its nodes.
     """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._queued: set[Task] = set()  # handed to the pool, not yet started by a pool thread
+        self._queued_lock = threading.Lock()
+
+    def _spin_once_impl(
+        self,
+        timeout_sec: float | executors.TimeoutObject | None = None,
+        wait_condition: Callable[[], bool] = lambda: False,
+    ) -> None:
+        """rclpy's, except that a callback waiting in the pool's queue is not queued again."""
+        try:
+            handler, _, _ = self.wait_for_ready_callbacks(timeout_sec, None, wait_condition)
+        except (
+            executors.ExternalShutdownException,
+            executors.ShutdownException,
+            executors.TimeoutException,
+            executors.ConditionReachedException,
+        ):
+            return
+        with self._queued_lock:
+            queued = handler in self._queued
+            self._queued.add(handler)
+        if queued:
+            time.sleep(QUEUED_POLL_S)
+            return
+        self._executor.submit(self._start, handler)
+        self._futures.append(handler)
+        for future in self._futures[:]:
+            if future.done():
+                self._futures.remove(future)
+                future.result()  # raise any exceptions, as rclpy's does
+
+    def _start(self, handler: Task) -> None:
+        """Run a callback in a pool thread: from now on it is executing, not queued."""
+        with self._queued_lock:
+            self._queued.discard(handler)
+        handler()
 
     def shutdown(self, timeout_sec: float | None = CALLBACKS_TIMEOUT_S, **kwargs: Any) -> bool:
         """Wait up to `timeout_sec` for the running callbacks (rclpy's handler futures), then shut down."""
