@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+import signal
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -37,14 +38,53 @@ def _claim_domain_id() -> int:
 
 _held_locks: list[object] = []
 os.environ["ROS_DOMAIN_ID"] = str(_claim_domain_id())
+# Every process this session starts inherits this mark: a session that dies (killed, a timeout) releases
+# its domain's lock while the nodes it started may live on, and those would answer the next session that
+# claims the domain (commands reach two rigs, two clocks interleave on /clock).
+SESSION_MARK = f"G2P_TEST_SESSION_DOMAIN={os.environ['ROS_DOMAIN_ID']}"
+os.environ["G2P_TEST_SESSION_DOMAIN"] = os.environ["ROS_DOMAIN_ID"]
+
+
+def kill_marked_processes() -> list[str]:
+    """SIGKILL every other process that carries this domain's SESSION_MARK; returns their command lines.
+
+    At the session's start they are orphans of a dead session; at its end, nodes the session left.
+    """
+    killed = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            if SESSION_MARK.encode() not in (entry / "environ").read_bytes().split(b"\0"):
+                continue
+            command = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            os.kill(int(entry.name), signal.SIGKILL)
+        except OSError:  # gone meanwhile, or not ours to read
+            continue
+        killed.append(f"{entry.name}: {command.strip()}")
+    return killed
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
-    """Remove the Fast DDS shared-memory files that killed processes of earlier sessions left (the tests
-    kill nodes on purpose), as `bringup` does before each graph."""
+    """End the orphans of a dead session that used this domain, then remove the Fast DDS shared-memory
+    files that killed processes left (the tests kill nodes on purpose), as `bringup` does before each
+    graph."""
     from g2p_bringup.dds import clean_shared_memory
 
+    for orphan in kill_marked_processes():
+        print(
+            f"conftest: killed an orphan of an earlier session in ROS domain {os.environ['ROS_DOMAIN_ID']}: "
+            f"{orphan}",
+            file=sys.stderr,
+        )
     clean_shared_memory()
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """Kill what the session left running (the fixture below stops what each test started; a node's own
+    children, or a test killed by its timeout, may remain), so that nothing outlives the domain's lock."""
+    for leftover in kill_marked_processes():
+        print(f"conftest: killed a process the session left running: {leftover}", file=sys.stderr)
 
 
 @pytest.fixture(autouse=True)
