@@ -202,6 +202,7 @@ class TickPlant:
                     break
                 self._cv.wait(left)
             heard = [ns for k, ns, _, _ in self._ticks if k > number]
+            partial = {ns: sorted(parts) for ns, parts in self._parts.items() if ns > after_ns}
         if heard and max(heard) < command_ns - _CLOCK_TOLERANCE_S * 1e9:
             raise RigError(
                 f"{len(heard)} ticks came after the command, all stamped long before it (newest "
@@ -209,6 +210,9 @@ class TickPlant:
                 "rig's; set use_sim_time when the rig runs on simulation time (/clock)"
             )
         why = f"; a malformed tick was dropped: {self._bad}" if self._bad else ""
+        if partial:  # where it stalls: a tick's messages that did come
+            ns = min(partial)
+            why += f"; of the tick stamped {ns * 1e-9:.6f} s only {', '.join(partial[ns])} came"
         raise RigUnreachable(f"no tick from the rig within {self._tick_timeout_s:g} s of a command{why}")
 
     def _collector(self, topic: str) -> Any:

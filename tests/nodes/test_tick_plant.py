@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from rclpy.parameter import Parameter
+from std_msgs.msg import Header
 
 from g2p.envelope import replay
 from g2p.plant import FloatArray, Plant, Recording, TickSample
@@ -252,3 +253,38 @@ def test_no_rig_is_reported_unreachable() -> None:
             peer.plant.reset()
     finally:
         peer.close()
+
+
+def test_a_tick_that_never_completes_is_reported_with_the_messages_that_came() -> None:
+    """A "rig" of plain publishers that answers each command on joint_states only: the step times out,
+    and says which of the tick's messages came."""
+    from sensor_msgs.msg import JointState
+
+    from g2p_interfaces.msg import MotorPower, RigLimits, Treadmill
+
+    rig = RosPeer("half_rig")
+    qos = contract.SAMPLE_QOS
+    joints = rig.node.create_publisher(JointState, contract.JOINT_STATES, qos)
+    others = [
+        rig.node.create_publisher(t, name, qos)
+        for t, name in (
+            (Treadmill, contract.TREADMILL),
+            (MotorPower, contract.MOTOR_POWER),
+            (MotorActivation, contract.APPLIED_ACTIVATION),
+            (RigLimits, contract.RIG_LIMITS),
+        )
+    ]
+
+    def answer(_: MotorActivation) -> None:
+        joints.publish(JointState(header=Header(stamp=rig.node.get_clock().now().to_msg())))
+
+    rig.node.create_subscription(MotorActivation, contract.ACTIVATION_CMD, answer, contract.COMMAND_QOS)
+    rig.start()
+    peer = TickPeer(sim_time=False, tick_timeout_s=1.0)
+    try:
+        with pytest.raises(RigUnreachable, match=r"of the tick stamped [0-9.]+ s only joint_states came"):
+            peer.plant.step(np.full(3, 0.3))
+    finally:
+        peer.close()
+        rig.close()
+        assert others  # kept alive until here: the plant waits for a publisher on each topic
