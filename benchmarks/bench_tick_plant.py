@@ -33,12 +33,16 @@ from g2p.safety import BASELINE_ACTIVATION
 from g2p_ros.spinner import BackgroundSpinner
 from g2p_ros.tick_plant import TickPlant
 
+# The envelope's soft limits and ramp change the applied activations: off, so that each tick's applied
+# activation tells which command it played.
+ENVELOPE_OFF = ("-p", "rig.envelope.soft_limits:=false", "-p", "rig.envelope.max_step:=1.0")
+
 
 def run(time_mode: str, steps: int) -> dict[str, object]:
     """Step the sim `steps` times through a TickPlant; timings in ms."""
     sim_exe = Path(get_package_prefix("g2p_sim")) / "lib" / "g2p_sim" / "sim"
     sim = subprocess.Popen(
-        [str(sim_exe), "--ros-args", "-p", f"time_mode:={time_mode}"],
+        [str(sim_exe), "--ros-args", "-p", f"time_mode:={time_mode}", *ENVELOPE_OFF],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
