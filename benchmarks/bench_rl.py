@@ -27,14 +27,14 @@ import numpy as np
 from g2p.baselines import MARKS_S, METHODS, THRESHOLD_MM, run_method
 from g2p.sweep import run_sweep
 
-COLOURS = {"g2p": "tab:green", "ppo": "tab:blue", "sac": "tab:orange"}
+COLOURS = {"g2p": "tab:green", "ppo": "tab:blue", "sac": "tab:orange", "random": "tab:grey"}
 
 
 def parse_budget(text: str) -> tuple[str, float]:
     """'ppo=2' -> ('ppo', 7200.0): a method's budget of rig time in hours."""
     method, sep, hours = text.partition("=")
     if not sep or method not in METHODS[1:]:
-        raise argparse.ArgumentTypeError(f"expected ppo=HOURS or sac=HOURS, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected ppo=, sac= or random=HOURS, got {text!r}")
     return method, float(hours) * 3600.0
 
 
@@ -145,11 +145,12 @@ def main() -> None:
         "--budget-h", type=parse_budget, action="append", default=[], help="METHOD=HOURS of rig time"
     )
     parser.add_argument("--frame-skip", type=int, default=4, help="ticks per RL action (4: 19.5 Hz)")
+    parser.add_argument("--calibration", default="", help='the simulated rig: "" (default) or "paper"')
     parser.add_argument("--workers", type=int, default=None, help="local Ray CPUs (default: all)")
     parser.add_argument("--address", default=None, help="a Ray cluster (default: RAY_ADDRESS, else local)")
     parser.add_argument("--out", type=Path, default=Path("docs/results/rl"))
     args = parser.parse_args()
-    budgets = {"ppo": 7200.0, "sac": 3600.0, **dict(args.budget_h)}
+    budgets = {"ppo": 7200.0, "sac": 3600.0, "random": 3600.0, **dict(args.budget_h)}
     methods = [m for m in args.methods.split(",") if m]
     unknown = sorted(set(methods) - set(METHODS))
     if unknown:
@@ -157,7 +158,13 @@ def main() -> None:
     # The longest jobs first, so that the workers finish together.
     order = sorted(methods, key=lambda m: -budgets.get(m, 0.0) * (4.0 if m == "sac" else 1.0))
     jobs = [
-        {"method": m, "seed": seed, "budget_s": budgets.get(m, 0.0), "frame_skip": args.frame_skip}
+        {
+            "method": m,
+            "seed": seed,
+            "budget_s": budgets.get(m, 0.0),
+            "frame_skip": args.frame_skip,
+            "calibration": args.calibration,
+        }
         for m in order
         for seed in range(args.seeds)
     ]
@@ -170,6 +177,7 @@ def main() -> None:
     summary["sweep_wall_s"] = result.wall_s
     summary["budgets_s"] = {m: budgets[m] for m in methods if m in budgets}
     summary["frame_skip"] = args.frame_skip
+    summary["calibration"] = args.calibration
     (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     if result.rows:
         plot(result.rows, args.out / "best_reward.png")

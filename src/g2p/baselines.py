@@ -7,7 +7,10 @@ with the rig time at its end and its belt travel, the reward G2P gives an attemp
     g2p_curve(seed)        the paper's G2P: 5 min of babbling, exploration, 15 exploitation attempts
     rl_curve("ppo" | "sac", seed, budget_s)    Stable-Baselines3 on g2p/Treadmill-v0
 
-`curve_summary` reduces a curve to the benchmark's figures (benchmarks/bench_rl.py, docs/RL.md).
+    random_patterns_curve(seed, budget_s)     the trivial baseline: the best of random open-loop patterns
+
+`curve_summary` reduces a curve to the benchmark's figures (benchmarks/bench_rl.py, docs/RL.md), and
+`chance_threshold_mm` finds a threshold relative to chance on a rig: a quantile of random episodes.
 Hyperparameters are the RL Zoo's for MuJoCo tasks (rl-baselines3-zoo hyperparams/ppo.yml and sac.yml):
 PPO with SB3's defaults and VecNormalize on observations and rewards; SAC with SB3's defaults and
 learning_starts 10,000.
@@ -32,7 +35,7 @@ from g2p.search import SearchConfig
 from g2p.sim import MujocoLeg, MujocoLegConfig
 
 RL_METHODS = ("ppo", "sac")
-METHODS = ("g2p", *RL_METHODS)
+METHODS = ("g2p", *RL_METHODS, "random")
 # The paper's exploration threshold (mm of belt travel in one 20-cycle attempt).
 THRESHOLD_MM = 64.0
 # Rig-time marks at which the best reward so far is reported (s): 10 min and 1 h.
@@ -104,6 +107,100 @@ def g2p_curve(seed: int, plant_config: MujocoLegConfig | None = None) -> Curve:
         for r in result.reports
     ]
     return Curve(episodes, plant.time_s)
+
+
+# The rig as it runs, for every method of the comparison (LegEnv's options): a command plays from the tick
+# after the one it arrives in (the real-time rig's delay), and a reset holds baseline 1 s with the windings
+# keeping their heat (the hardware's reset holds baseline at least 0.5 s and until the joints have been
+# still for 0.5 s: g2p.hardware.leg).
+RIG_AS_IT_RUNS: dict[str, Any] = {"action_delay_ticks": 1, "reset_s": 1.0}
+
+
+def random_patterns_curve(
+    seed: int,
+    budget_s: float,
+    plant_config: MujocoLegConfig | None = None,
+    cycle: LimitCycleConfig | None = None,
+) -> Curve:
+    """The trivial baseline: random open-loop patterns, one per episode, until `budget_s` of rig time.
+
+    Each pattern is periodic: per motor, `n_spokes` activations drawn uniformly in [0, 1], linearly
+    interpolated around the cycle (80 ticks) and played for the episode's `n_cycles` cycles, tick by tick,
+    on the rig as it runs (RIG_AS_IT_RUNS). Its best-so-far is what search without any model finds.
+
+    Args:
+        seed: seed of the patterns and of the rig.
+        budget_s: rig time to search for (s; resets included); the episode that crosses it is the last.
+        plant_config: the simulated rig (default: MujocoLegConfig(seed=seed)).
+        cycle: the episodes' timing (default: LimitCycleConfig(), one G2P attempt).
+
+    Raises:
+        ValueError: a non-positive budget.
+    """
+    if not (math.isfinite(budget_s) and budget_s > 0):
+        raise ValueError(f"budget_s: must be > 0, got {budget_s}")
+    cfg = plant_config if plant_config is not None else MujocoLegConfig(seed=seed)
+    log = EpisodeLog(TreadmillEnv(plant_config=cfg, cycle=cycle, reset_noise_scale=0.0, **RIG_AS_IT_RUNS))
+    env: TreadmillEnv = log.unwrapped  # type: ignore[assignment]
+    rng = np.random.default_rng(seed)
+    m, spokes = env.cycle.samples_per_cycle, env.cycle.n_spokes
+    phase = np.arange(m) / m * spokes  # each tick's position around the cycle, in spokes
+    log.reset(seed=seed)
+    while True:
+        levels = rng.uniform(0.0, 1.0, (spokes, 3))
+        pattern = np.stack(
+            [
+                np.interp(phase, np.arange(spokes + 1), np.append(levels[:, k], levels[0, k]))
+                for k in range(3)
+            ],
+            axis=1,
+        )
+        done = False
+        for tick in range(env.episode_ticks):
+            _, _, terminated, truncated, _ = log.step(pattern[tick % m].astype(np.float32))
+            if terminated or truncated:
+                done = True
+                break
+        assert done, "an episode ends by its last tick"
+        if log.rig_time_s >= budget_s:
+            break
+        log.reset()
+    rig_time_s = log.rig_time_s
+    log.close()
+    return Curve(log.episodes, rig_time_s)
+
+
+def chance_threshold_mm(
+    plant_config: MujocoLegConfig,
+    episodes: int = 100,
+    quantile: float = 0.95,
+    frame_skip: int = 4,
+    seed: int = 0,
+) -> float:
+    """A threshold relative to chance on a rig: the `quantile` of random episodes' belt travel (mm).
+
+    Each episode plays uniformly random actions, a new one every `frame_skip` ticks (a model-free
+    learner's first episodes), on the rig as it runs (RIG_AS_IT_RUNS); a method that crosses the threshold
+    has found what chance finds in 1 of 1 / (1 - quantile) episodes.
+
+    Raises:
+        ValueError: fewer than 2 episodes, or a quantile outside (0, 1).
+    """
+    if episodes < 2 or not 0 < quantile < 1:
+        raise ValueError(f"need episodes >= 2 and 0 < quantile < 1, got {episodes}, {quantile}")
+    env = TreadmillEnv(plant_config=plant_config, frame_skip=frame_skip, **RIG_AS_IT_RUNS)
+    env.action_space.seed(seed)
+    travel = []
+    env.reset(seed=seed)
+    for _ in range(episodes):
+        terminated = truncated = False
+        info: dict[str, Any] = {}
+        while not (terminated or truncated):
+            _, _, terminated, truncated, info = env.step(env.action_space.sample())
+        travel.append(float(info["belt_travel_mm"]))
+        env.reset()
+    env.close()
+    return float(np.quantile(travel, quantile))
 
 
 def rl_model(method: str, env: gym.Env[Any, Any], seed: int) -> Any:
@@ -185,10 +282,22 @@ def curve_summary(curve: Curve, threshold_mm: float = THRESHOLD_MM) -> dict[str,
     }
 
 
-def run_method(method: str, seed: int, budget_s: float, frame_skip: int = 4) -> dict[str, Any]:
-    """One job of the comparison: the curve, its summary, and the job's wall and CPU time (s)."""
+def run_method(
+    method: str, seed: int, budget_s: float, frame_skip: int = 4, calibration: str = ""
+) -> dict[str, Any]:
+    """One job of the comparison: the curve, its summary, and the job's wall and CPU time (s).
+
+    `calibration` chooses the simulated rig (MujocoLegConfig.calibration: "" the default, "paper" the
+    paper-like rig).
+    """
     wall0, cpu0 = time.perf_counter(), time.process_time()
-    curve = g2p_curve(seed) if method == "g2p" else rl_curve(method, seed, budget_s, frame_skip)
+    cfg = MujocoLegConfig(seed=seed, calibration=calibration)
+    if method == "g2p":
+        curve = g2p_curve(seed, cfg)
+    elif method == "random":
+        curve = random_patterns_curve(seed, budget_s, cfg)
+    else:
+        curve = rl_curve(method, seed, budget_s, frame_skip, cfg)
     return {
         **curve_summary(curve),
         "wall_s": time.perf_counter() - wall0,

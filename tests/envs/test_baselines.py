@@ -7,9 +7,18 @@ import pytest
 import torch
 from stable_baselines3 import PPO
 
-from g2p.baselines import Curve, Episode, EpisodeLog, curve_summary, rl_curve
+from g2p.baselines import (
+    Curve,
+    Episode,
+    EpisodeLog,
+    chance_threshold_mm,
+    curve_summary,
+    random_patterns_curve,
+    rl_curve,
+)
 from g2p.envs import TreadmillEnv
 from g2p.limit_cycle import LimitCycleConfig
+from g2p.sim import MujocoLegConfig
 
 
 def _mean_action(model: PPO, env: TreadmillEnv, seed: int) -> float:
@@ -70,3 +79,29 @@ def test_curve_summary_known_answers() -> None:
     never = curve_summary(Curve([Episode(700.0, 10.0, 1.0)], 700.0))
     assert never["rig_time_to_threshold_s"] is None and never["best_mm_10min"] is None
     assert never["best_mm_1h"] == 10.0
+
+
+def test_random_patterns_search_until_the_budget_on_the_rig_as_it_runs() -> None:
+    """Episodes of random periodic patterns until the budget: each logged with its belt travel; between two
+    episodes' ends, an episode's ticks and the reset's 1 s; the same seed gives the same curve."""
+    cycle = LimitCycleConfig(n_cycles=1)
+    curve = random_patterns_curve(3, 10.0, cycle=cycle)
+    times = np.array([e.rig_time_s for e in curve.episodes])
+    assert times[-2] < 10.0 <= times[-1] == curve.rig_time_s
+    # 80 ticks of 12.8 ms and 78 ticks of reset, each jittered by up to 0.8 ms (mean 0)
+    np.testing.assert_allclose(np.diff(times), (80 + 78) / 78.0, atol=0.02)
+    rewards = [e.reward_mm for e in curve.episodes]
+    assert len(set(rewards)) == len(rewards)  # a new pattern each episode
+    again = random_patterns_curve(3, 10.0, cycle=cycle)
+    assert [e.reward_mm for e in again.episodes] == rewards
+    with pytest.raises(ValueError, match="budget_s"):
+        random_patterns_curve(0, 0.0)
+
+
+def test_chance_threshold_is_a_quantile_of_random_episodes() -> None:
+    config = MujocoLegConfig(seed=2)
+    low, high = (chance_threshold_mm(config, episodes=6, quantile=q, seed=1) for q in (0.1, 0.9))
+    assert low < high  # the same six episodes, a higher quantile
+    assert chance_threshold_mm(config, episodes=6, quantile=0.9, seed=1) == high
+    with pytest.raises(ValueError, match="quantile"):
+        chance_threshold_mm(config, episodes=1)

@@ -196,3 +196,49 @@ def test_render_gives_the_leg_as_an_rgb_array() -> None:
     env = {**os.environ, "MUJOCO_GL": "egl"}
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, env=env)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
+def test_an_action_delay_plays_each_action_a_tick_later() -> None:
+    """Known answer: with a one-tick delay, actions a_0, a_1, ... play as baseline, a_0, a_1, ... without."""
+    config = MujocoLegConfig(seed=3)
+    actions = _actions(SHORT.samples_per_cycle * SHORT.n_cycles).astype(np.float64)
+    delayed = TreadmillEnv(plant_config=config, cycle=SHORT, action_delay_ticks=1)
+    lockstep = TreadmillEnv(plant_config=config, cycle=SHORT)
+    delayed.reset(seed=1)
+    lockstep.reset(seed=1)
+    shifted = np.vstack([np.full((1, 3), BASELINE_ACTIVATION), actions[:-1]])
+    for a, b in zip(actions, shifted, strict=True):
+        obs_delayed, reward_delayed, *_ = delayed.step(a)
+        obs_lockstep, reward_lockstep, *_ = lockstep.step(b)
+        np.testing.assert_array_equal(obs_delayed, obs_lockstep)
+        assert reward_delayed == reward_lockstep
+    with pytest.raises(ValueError, match="action_delay_ticks"):
+        TreadmillEnv(action_delay_ticks=-1)
+
+
+def test_a_reset_with_rig_time_keeps_the_heat_and_costs_its_time() -> None:
+    """An episode at full activation heats the windings; a reset of 5 s holds baseline for 5 s of rig time
+    and the next episode starts warmer than ambient but cooler than the last one ended. Without reset
+    time, each episode starts at ambient and no rig time passes."""
+    for reset_s in (5.0, 0.0):
+        env = TreadmillEnv(cycle=SHORT, reset_s=reset_s, reset_noise_scale=0.0)
+        plant = env.plant
+        assert isinstance(plant, MujocoLeg)
+        env.reset(seed=0)
+        ambient = plant.winding_temperature_c.copy()
+        truncated = terminated = False
+        while not (truncated or terminated):
+            _, _, terminated, truncated, _ = env.step(np.ones(3, np.float32))
+        hot, ended_s = plant.winding_temperature_c.copy(), plant.time_s
+        assert np.all(hot > ambient + 1.0)
+        env.reset()
+        if reset_s:
+            # 390 ticks at 78 Hz, each with the tick clock's jitter (0.8 ms)
+            assert plant.time_s - ended_s == pytest.approx(reset_s, abs=0.1)
+            assert np.all(plant.winding_temperature_c < hot)
+            assert np.all(plant.winding_temperature_c > ambient + 0.5)
+            assert env._envelope is not None and np.all(env._envelope.winding_c > ambient + 0.5)
+        else:
+            assert plant.time_s == ended_s
+            np.testing.assert_array_equal(plant.winding_temperature_c, ambient)
+        env.close()

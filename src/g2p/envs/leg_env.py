@@ -5,6 +5,11 @@ read, the action is held for `frame_skip` ticks, the reward returns its terms in
 truncates after a fixed number of ticks, `reset(seed=...)` seeds everything random, `reset_noise_scale`
 perturbs the resting posture, and `render()` returns an RGB array.
 
+Two properties of the real rig are options here: the real-time rig's action delay (a command plays from
+the tick after the one it arrives in: `action_delay_ticks=1`), and the rig time a reset takes (`reset_s`:
+the rig holds baseline that long between episodes, and its windings keep the heat of the episodes before,
+cooling meanwhile). By default an episode starts on a fresh rig, without delay.
+
 The rig's limits hold as on every rig: on the simulated rig in-process, each tick's action passes the
 rig's safety envelope (g2p.envelope), as the tick loop of a ROS rig passes it. An episode **terminates**
 when a limit trips (a winding's cut-out, a snapped or derailed tendon: g2p.sim.limits), as a real rig's
@@ -16,6 +21,7 @@ Subclasses (g2p.envs.treadmill, g2p.envs.track) add to the observation and defin
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import Any
 
 import gymnasium as gym
@@ -25,6 +31,7 @@ from numpy.typing import NDArray
 from g2p.envelope import SafetyEnvelope
 from g2p.limit_cycle import LimitCycleConfig
 from g2p.plant import N_JOINTS, N_MOTORS, FloatArray, Plant, TickSample
+from g2p.safety import BASELINE_ACTIVATION
 from g2p.sim import MujocoLeg, MujocoLegConfig
 
 # Observation entries every environment of the rig starts with: joint angles (rad), joint velocities
@@ -54,6 +61,13 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         frame_skip: ticks each action is held for (a divisor of the episode's ticks).
         reset_noise_scale: on reset the joint angles move by U(-s, s) rad and their velocities by
             s N(0, 1) rad/s (simulated rig only).
+        action_delay_ticks: ticks between a step's action and the first tick that plays it; the ticks
+            before play the previous action (baseline after a reset). The real-time rig's is 1 (docs/RL.md,
+            "Timing limits"); 0 is lockstep (simulated rig only).
+        reset_s: rig time a reset takes (s; simulated rig only): after putting a tripped rig right, the
+            rig holds baseline this long before the episode starts, and the windings keep their heat
+            (the safety envelope its estimate) across episodes. 0: each episode starts on a fresh rig,
+            windings at ambient, and no rig time passes.
         render_mode: None or "rgb_array" (MuJoCo's offscreen renderer: set MUJOCO_GL=egl on a machine
             without a display).
         width: rendered image width (pixels).
@@ -74,6 +88,8 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         cycle: LimitCycleConfig | None = None,
         frame_skip: int = 1,
         reset_noise_scale: float = 5e-3,
+        action_delay_ticks: int = 0,
+        reset_s: float = 0.0,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -87,17 +103,26 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
             )
         if not (math.isfinite(reset_noise_scale) and reset_noise_scale >= 0):
             raise ValueError(f"reset_noise_scale: must be finite and >= 0, got {reset_noise_scale}")
+        if action_delay_ticks < 0:
+            raise ValueError(f"action_delay_ticks: must be >= 0, got {action_delay_ticks}")
+        if not (math.isfinite(reset_s) and reset_s >= 0):
+            raise ValueError(f"reset_s: must be finite and >= 0, got {reset_s}")
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode: must be None or 'rgb_array', got {render_mode!r}")
         self._owns_plant = plant is None
         self.plant: Plant = MujocoLeg(plant_config) if plant is None else plant
-        if not isinstance(self.plant, MujocoLeg) and (reset_noise_scale or render_mode):
+        if not isinstance(self.plant, MujocoLeg) and (
+            reset_noise_scale or render_mode or action_delay_ticks or reset_s
+        ):
             raise ValueError(
-                f"{type(self.plant).__name__}: reset noise and rendering need the simulated rig (MujocoLeg); "
-                "pass reset_noise_scale=0 and render_mode=None"
+                f"{type(self.plant).__name__}: reset noise, rendering, an action delay and a reset's time "
+                "need the simulated rig (MujocoLeg; a ROS rig has its own); pass reset_noise_scale=0, "
+                "render_mode=None, action_delay_ticks=0 and reset_s=0"
             )
         self.frame_skip = frame_skip
         self.reset_noise_scale = reset_noise_scale
+        self.action_delay_ticks = action_delay_ticks
+        self.reset_s = reset_s
         self.render_mode = render_mode
         self._size = (width, height)
         self._renderer: Any = None
@@ -110,6 +135,7 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         self._last: TickSample | None = None
         self._envelope: SafetyEnvelope | None = None  # the in-process rig's; a ROS rig applies its own
         self._trip = ""
+        self._delayed: deque[FloatArray] = deque()  # commands on their way: the oldest plays next
 
     @property
     def dt(self) -> float:
@@ -136,13 +162,19 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         super().reset(seed=seed)
         self._on_reset(options)
         if isinstance(self.plant, MujocoLeg):
-            self._last = self.plant.reset_episode(self.np_random, self.reset_noise_scale)
-            self._envelope = SafetyEnvelope()  # the windings start at ambient, as reset_episode's
+            warm = self.reset_s > 0 and self._envelope is not None
+            if warm:
+                self._rest()
+            else:
+                self._envelope = SafetyEnvelope()  # the windings start at ambient, as reset_episode's
+            self._last = self.plant.reset_episode(self.np_random, self.reset_noise_scale, keep_heat=warm)
+            assert self._envelope is not None
             self._envelope.observe(self._last.t_s, self._last.activation)
         else:
             self._last = self.plant.reset()
         self.ticks = 0
         self._trip = ""
+        self._delayed = deque(np.full(N_MOTORS, BASELINE_ACTIVATION) for _ in range(self.action_delay_ticks))
         return self._observation(), self._info({})
 
     def step(
@@ -165,7 +197,8 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         first = self.ticks
         samples = [self._last]
         for _ in range(self.frame_skip):
-            samples.append(self._tick(commanded, samples[-1]))
+            self._delayed.append(commanded)
+            samples.append(self._tick(self._delayed.popleft(), samples[-1]))
             if self._trip:
                 break
         self._last = samples[-1]
@@ -217,6 +250,14 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
             self._trip = envelope.trip
         self._trip = getattr(self.plant, "fault", "") or self._trip
         return sample
+
+    def _rest(self) -> None:
+        """A reset's rig time: put a tripped rig right, then hold baseline for `reset_s` (simulated rig)."""
+        assert isinstance(self.plant, MujocoLeg) and self._envelope is not None
+        last = self.plant.reset()
+        self._envelope.observe(last.t_s, last.activation)  # the time a tripped rig took to cool
+        for _ in range(round(self.reset_s * self.plant.tick_hz)):
+            last = self._tick(np.full(N_MOTORS, BASELINE_ACTIVATION), last)
 
     def _observation(self) -> NDArray[np.float64]:
         s = self._last

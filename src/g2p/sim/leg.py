@@ -146,7 +146,9 @@ class MujocoLeg:
         self._diverged = False
         return self._still_sample()
 
-    def reset_episode(self, rng: np.random.Generator, noise_scale: float) -> TickSample:
+    def reset_episode(
+        self, rng: np.random.Generator, noise_scale: float, keep_heat: bool = False
+    ) -> TickSample:
         """Start an episode as a fresh rig would: `reset`, meters at 0, joints perturbed, jitter from `rng`.
 
         For reinforcement learning (g2p.envs): the belt odometer and the energy meters read 0 again, so that
@@ -158,6 +160,7 @@ class MujocoLeg:
         Args:
             rng: the generator of the perturbation and, from now on, of the tick jitter.
             noise_scale: scale of the perturbation (rad, rad/s); 0 = the resting posture exactly.
+            keep_heat: keep the windings' temperatures (a rig that ran before), instead of ambient.
 
         Returns:
             A sample at the perturbed posture (the velocity reads 0: the encoders have no history yet).
@@ -170,7 +173,8 @@ class MujocoLeg:
         self.reset()
         self._belt_base_m = -self._belt_rest_m
         self._energy_j[:] = 0.0
-        self._winding_c[:] = self.limits.ambient_c
+        if not keep_heat:
+            self._winding_c[:] = self.limits.ambient_c
         self._clock = TickClock(rng, self.config.tick_hz, self.config.tick_jitter_s)
         leg = self._leg
         if noise_scale > 0:
