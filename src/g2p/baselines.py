@@ -148,20 +148,13 @@ def random_patterns_curve(
     log.reset(seed=seed)
     while True:
         levels = rng.uniform(0.0, 1.0, (spokes, 3))
-        pattern = np.stack(
-            [
-                np.interp(phase, np.arange(spokes + 1), np.append(levels[:, k], levels[0, k]))
-                for k in range(3)
-            ],
-            axis=1,
-        )
-        done = False
-        for tick in range(env.episode_ticks):
-            _, _, terminated, truncated, _ = log.step(pattern[tick % m].astype(np.float32))
-            if terminated or truncated:
-                done = True
-                break
-        assert done, "an episode ends by its last tick"
+        closed = np.vstack([levels, levels[:1]])  # the cycle returns to its first spoke
+        pattern = np.stack([np.interp(phase, np.arange(spokes + 1), closed[:, k]) for k in range(3)], axis=1)
+        pattern = pattern.astype(np.float32)
+        tick, terminated, truncated = 0, False, False
+        while not (terminated or truncated):  # the episode's last tick truncates it
+            _, _, terminated, truncated, _ = log.step(pattern[tick % m])
+            tick += 1
         if log.rig_time_s >= budget_s:
             break
         log.reset()
