@@ -345,7 +345,10 @@ def test_the_driver_on_fake_devices_serves_run_trajectory(tmp_path: Path) -> Non
         tracked = peer.client.play_trajectory(traj)
         rec = tracked.recording
         assert len(rec) == len(traj)
-        assert abs(np.median(np.diff(rec.t_s)) * NOMINAL_TICK_HZ - 1.0) < 0.1  # paced by the hardware loop
+        # Paced by the hardware loop's deadlines, not by the client: no faster than the nominal rate. (Slower
+        # is the machine's speed, not behaviour: a tick that overruns its deadline moves the next one on;
+        # benchmarks/bench_driver.py measures the rate.)
+        assert np.median(np.diff(rec.t_s)) * NOMINAL_TICK_HZ > 0.9
         assert np.abs(tracked.correction_rad_s).max() > 0.1
         assert_tracker_decided(traj, rec, tracked.correction_rad_s)
         wait_until(lambda: at_baseline(outputs(state_dir)), 10.0, "the outputs at baseline after it")
