@@ -36,8 +36,12 @@ def test_every_model_parameter_reads_back_what_was_written() -> None:
     values = model_values(leg.model)
     for name, value in changed.items():
         assert values[name] == pytest.approx(value), name
-    # The motors' gain is the current at activation 1: the actuators follow (the model check passes).
-    assert leg.leg_model.motor.max_current_a == pytest.approx(changed["motor_max_current_a"])
+    # The actuators' gain is Kt * I_max, both changed here: it follows both (the model check passes).
+    motor = leg.leg_model.motor
+    assert motor.max_current_a == pytest.approx(changed["motor_max_current_a"])
+    assert motor.kt_nm_per_a == pytest.approx(changed["motor_kt_nm_per_a"])
+    assert motor.resistance_ohm == pytest.approx(changed["motor_resistance_ohm"])
+    assert leg.model.actuator_gainprm[:3, 0] == pytest.approx([motor.max_torque_nm] * 3)
 
 
 def test_the_file_round_trips(tmp_path: Path) -> None:

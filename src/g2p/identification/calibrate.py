@@ -15,6 +15,7 @@ file and what is missing).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from dataclasses import dataclass, replace
@@ -26,6 +27,7 @@ from g2p.config import ConfigError
 from g2p.files import write_atomically, write_text_atomically
 from g2p.identification.fit import (
     DEFAULT_PARAMETERS,
+    Estimate,
     FitConfig,
     FitError,
     FitResult,
@@ -124,6 +126,9 @@ def calibrate(run: RecordedRun, config: FitConfig, babbling_s: float | None = No
                 "held_out": {"model": rmse_held[0], "calibrated": rmse_held[1]},
             },
             "evaluations": result.evaluations,
+            "seconds": round(result.seconds, 1),
+            "workers": result.workers,
+            "interval_blocks": result.blocks,
             "optimizer": result.message,
             "not_fitted_belt_still": list(skipped),
         },
@@ -131,12 +136,30 @@ def calibrate(run: RecordedRun, config: FitConfig, babbling_s: float | None = No
     return Calibration(result, calibration, rmse_fit, rmse_held, label, held_before, held_after, recorded)
 
 
+def _determined(e: Estimate) -> str:
+    """Whether the data determine an estimate, and why not."""
+    if e.determined:
+        return "yes"
+    if not math.isfinite(e.jacobian_interval):
+        return "no: nothing recorded moves with it"
+    return "no: its interval is wider than half its unit"
+
+
 def report_markdown(cal: Calibration) -> str:
     """The report's table: estimates with intervals, errors before and after."""
+    result = cal.result
+    how = (
+        f"each the larger of the spread of the same fit on {result.blocks} consecutive stretches of the "
+        f"fitted ticks ({result.blocks_converged} of {result.blocks} converged; batch means, Student's t) "
+        "and the Jacobian's interval"
+        if result.blocks
+        else "from the Jacobian at the optimum alone (it assumes independent residuals: too narrow)"
+    )
     lines = [
         "# Calibration",
         "",
-        f"Fitted on {cal.calibration.fit.get('fitted')}; held out: {cal.held_out}.",
+        f"Fitted on {cal.calibration.fit.get('fitted')}; held out: {cal.held_out}. "
+        f"The fit took {result.seconds:.0f} s with {result.workers} worker processes. 95 % intervals: {how}.",
         "",
         "| joint-angle RMSE (deg) | model | calibrated |",
         "| --- | --- | --- |",
@@ -148,8 +171,7 @@ def report_markdown(cal: Calibration) -> str:
     ]
     for e in cal.result.estimates:
         lines.append(
-            f"| {e.name} | {e.model_value:.5g} | {e.value:.5g} | +- {e.interval:.2g} | "
-            f"{'yes' if e.determined else 'no'} |"
+            f"| {e.name} | {e.model_value:.5g} | {e.value:.5g} | +- {e.interval:.2g} | {_determined(e)} |"
         )
     fitted = {e.name for e in cal.result.estimates}
     for name in cal.calibration.undetermined:
@@ -207,6 +229,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-evaluations", type=int, default=FitConfig.max_evaluations)
     parser.add_argument("--window-ticks", type=int, default=FitConfig.window_ticks)
     parser.add_argument("--workers", type=int, default=0, help="processes (default: all CPUs)")
+    parser.add_argument(
+        "--interval-blocks",
+        type=int,
+        default=FitConfig.interval_blocks,
+        help="the intervals from refits on this many stretches of the recording (0: the Jacobian's alone)",
+    )
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
     try:
@@ -215,6 +243,7 @@ def main(argv: list[str] | None = None) -> int:
             max_evaluations=args.max_evaluations,
             window_ticks=args.window_ticks,
             workers=args.workers,
+            interval_blocks=args.interval_blocks,
         )
         run = load_recorded_run(args.bag)
         print(

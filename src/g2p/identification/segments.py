@@ -45,6 +45,11 @@ class Segment:
         position_rad: the encoder angles at the end of each tick, shape (N, 2) (rad).
         current_a: mean motor currents over each tick, shape (N, 3) (A).
         belt_velocity_mm_s: mean belt velocity over each tick, shape (N,) (mm/s, + backward).
+        power_w: mean electrical power of each motor over each tick, shape (N, 3) (W).
+        start_position_rad: None for a segment that starts at rest; for a stretch cut from the middle of
+            one (`block`), the encoder angles before its first tick, shape (2,) (rad).
+        scored_from: the ticks before this one are replayed but not compared: they let the replay's
+            motor currents, tendon stretch and velocities, which start at rest, catch up with the rig.
     """
 
     name: str
@@ -53,6 +58,9 @@ class Segment:
     position_rad: FloatArray
     current_a: FloatArray
     belt_velocity_mm_s: FloatArray
+    power_w: FloatArray
+    start_position_rad: FloatArray | None = None
+    scored_from: int = 0
 
     def __len__(self) -> int:
         return len(self.period_s)
@@ -64,13 +72,27 @@ class Segment:
 
     def head(self, n: int) -> Segment:
         """The first `n` ticks."""
+        return self.block(0, n, 0)
+
+    def block(self, start: int, stop: int, settle_ticks: int) -> Segment:
+        """Ticks [start, stop) as a segment of their own: a stretch of the recording to fit on.
+
+        A stretch after the first tick begins `settle_ticks` earlier, at the recorded angles, with those
+        ticks replayed but not compared (`scored_from`).
+        """
+        if self.start_position_rad is not None or self.scored_from:
+            raise ValueError(f"{self.name}: a block of a block")
+        first = max(0, start - settle_ticks)
         return Segment(
             self.name,
-            self.activation[:n],
-            self.period_s[:n],
-            self.position_rad[:n],
-            self.current_a[:n],
-            self.belt_velocity_mm_s[:n],
+            self.activation[first:stop],
+            self.period_s[first:stop],
+            self.position_rad[first:stop],
+            self.current_a[first:stop],
+            self.belt_velocity_mm_s[first:stop],
+            self.power_w[first:stop],
+            start_position_rad=self.position_rad[first - 1].copy() if first > 0 else None,
+            scored_from=start - first,
         )
 
 
@@ -103,6 +125,7 @@ def segment_of(
         position_rad=recording.position_rad.copy(),
         current_a=recording.current_a.copy(),
         belt_velocity_mm_s=belt,
+        power_w=recording.power_w.copy(),
     )
 
 

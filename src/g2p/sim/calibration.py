@@ -141,6 +141,24 @@ def _max_current() -> tuple[Callable[[mujoco.MjModel], float], Callable[[mujoco.
     return read, write
 
 
+def _torque_constant() -> tuple[Callable[[mujoco.MjModel], float], Callable[[mujoco.MjModel, float], None]]:
+    """The motors' torque constant (N m/A, = the back-EMF constant); the actuators' gain follows, Kt I_max."""
+
+    def numeric(m: mujoco.MjModel, name: str) -> int:
+        return int(m.numeric_adr[_id(m, mujoco.mjtObj.mjOBJ_NUMERIC, name)])
+
+    def read(m: mujoco.MjModel) -> float:
+        return float(m.numeric_data[numeric(m, "motor_kt")])
+
+    def write(m: mujoco.MjModel, value: float) -> None:
+        m.numeric_data[numeric(m, "motor_kt")] = value
+        m.actuator_gainprm[_motors(mujoco.mjtObj.mjOBJ_ACTUATOR, 0)(m)] = (
+            value * m.numeric_data[numeric(m, "motor_max_current")]
+        )
+
+    return read, write
+
+
 def _numeric(name: str) -> tuple[Callable[[mujoco.MjModel], float], Callable[[mujoco.MjModel, float], None]]:
     """A custom numeric of the model (the rig's limits, g2p.sim.limits)."""
     return _field("numeric_data", lambda m: (int(m.numeric_adr[_id(m, mujoco.mjtObj.mjOBJ_NUMERIC, name)]),))
@@ -241,6 +259,20 @@ def _parameters() -> tuple[LegParameter, ...]:
             1.0,
             30.0,
             _max_current(),
+        ),
+        p(
+            "motor_kt_nm_per_a",
+            "the motors' torque constant (N m/A), equal to their back-EMF constant (V s/rad)",
+            0.005,
+            1.0,
+            _torque_constant(),
+        ),
+        p(
+            "motor_resistance_ohm",
+            "each winding's resistance (ohm)",
+            0.01,
+            20.0,
+            _numeric("motor_resistance"),
         ),
         p(
             "belt_drag_n",
