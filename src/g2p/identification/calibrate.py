@@ -150,8 +150,8 @@ def report_markdown(cal: Calibration) -> str:
     result = cal.result
     how = (
         f"each the larger of the spread of the same fit on {result.blocks} consecutive stretches of the "
-        f"fitted ticks ({result.blocks_converged} of {result.blocks} converged; batch means, Student's t) "
-        "and the Jacobian's interval"
+        f"fitted ticks ({result.blocks_converged} of {result.blocks} converged), Student's t times their "
+        "standard deviation, and the Jacobian's interval"
         if result.blocks
         else "from the Jacobian at the optimum alone (it assumes independent residuals: too narrow)"
     )

@@ -4,7 +4,7 @@ The parameters (g2p.sim.calibration.PARAMETERS) are `mujoco.sysid.Parameter`s in
 their bounds; `mujoco.sysid.optimize` minimises the residual (scipy's trust-region least squares with
 MuJoCo's finite-difference Jacobian). The 95 % intervals come from the same fit on consecutive stretches
 of the recording (`fit`): the Jacobian's own (`mujoco.sysid.calculate_intervals`) assume independent
-residuals, and are 3 to 600 times too narrow (docs/RESULTS.md, "Calibration").
+residuals, and hold the truth for 9 % of parameters (docs/RESULTS.md, "Calibration intervals").
 
 The residual is the plant itself replaying each segment: a `MujocoLeg` built with the candidate values
 starts at its own resting posture and plays the recorded activations, each tick for its recorded duration
@@ -418,17 +418,18 @@ def _solve(problem: _Problem, workers: int) -> _Solution:
 
 
 def block_half_width(block_x: FloatArray) -> FloatArray:
-    """The 95 % half-width of a fit on all B blocks from the estimates on each, shape (B, P) -> (P,).
+    """The 95 % half-width of a fit's error from its estimates on B stretches, shape (B, P) -> (P,).
 
-    The method of batch means: the B estimates are independent draws of a fit on 1/B of the data, so
-    the whole fit's standard error is their standard deviation / sqrt(B), with Student's t at B - 1
-    degrees of freedom.
+    Student's t at B - 1 degrees of freedom times the stretches' standard deviation: the whole fit's
+    error is taken to be distributed as one stretch's. Where the optimizer stops on the residual's
+    roughness, not the recording's noise, sets the error, and it does not shrink with B times the data:
+    the method of batch means (the same divided by sqrt(B)) held the truth for 83 % of parameters, this for
+    94 % (docs/RESULTS.md, "Calibration intervals").
     """
     from scipy import stats
 
-    b = block_x.shape[0]
     spread: FloatArray = np.std(block_x, axis=0, ddof=1)
-    return float(stats.t.ppf(0.975, b - 1)) * spread / math.sqrt(b)
+    return float(stats.t.ppf(0.975, block_x.shape[0] - 1)) * spread
 
 
 def split_blocks(segments: Sequence[Segment], n_blocks: int, settle_ticks: int) -> list[list[Segment]]:
