@@ -35,7 +35,7 @@ def g2p_calibrate() -> str:
 
 
 @pytest.mark.slow
-@pytest.mark.timeout(1200)  # the intervals' refits double the fit: 395 s here beside another test session
+@pytest.mark.timeout(1200)  # the intervals' refits double the fit: 395-414 s here
 def test_a_hidden_rig_is_recovered_from_its_bag_and_served(tmp_path: Path) -> None:
     hidden = tmp_path / "hidden.yaml"
     hidden.write_text(LegCalibration(HIDDEN).to_yaml())
