@@ -123,37 +123,21 @@ def _motors(kind: mujoco.mjtObj, *columns: int) -> Callable[[mujoco.MjModel], tu
     return index
 
 
-def _max_current() -> tuple[Callable[[mujoco.MjModel], float], Callable[[mujoco.MjModel, float], None]]:
-    """Current at activation 1 (A): the motors' gain; the actuator gain follows as Kt * I_max."""
+def _gain_factor(
+    numeric_name: str,
+) -> tuple[Callable[[mujoco.MjModel], float], Callable[[mujoco.MjModel, float], None]]:
+    """A factor of the actuators' gain Kt * I_max (`motor_kt` or `motor_max_current`); the gain follows."""
 
     def numeric(m: mujoco.MjModel, name: str) -> int:
         return int(m.numeric_adr[_id(m, mujoco.mjtObj.mjOBJ_NUMERIC, name)])
 
     def read(m: mujoco.MjModel) -> float:
-        return float(m.numeric_data[numeric(m, "motor_max_current")])
+        return float(m.numeric_data[numeric(m, numeric_name)])
 
     def write(m: mujoco.MjModel, value: float) -> None:
-        m.numeric_data[numeric(m, "motor_max_current")] = value
+        m.numeric_data[numeric(m, numeric_name)] = value
         m.actuator_gainprm[_motors(mujoco.mjtObj.mjOBJ_ACTUATOR, 0)(m)] = (
-            m.numeric_data[numeric(m, "motor_kt")] * value
-        )
-
-    return read, write
-
-
-def _torque_constant() -> tuple[Callable[[mujoco.MjModel], float], Callable[[mujoco.MjModel, float], None]]:
-    """The motors' torque constant (N m/A, = the back-EMF constant); the actuators' gain follows, Kt I_max."""
-
-    def numeric(m: mujoco.MjModel, name: str) -> int:
-        return int(m.numeric_adr[_id(m, mujoco.mjtObj.mjOBJ_NUMERIC, name)])
-
-    def read(m: mujoco.MjModel) -> float:
-        return float(m.numeric_data[numeric(m, "motor_kt")])
-
-    def write(m: mujoco.MjModel, value: float) -> None:
-        m.numeric_data[numeric(m, "motor_kt")] = value
-        m.actuator_gainprm[_motors(mujoco.mjtObj.mjOBJ_ACTUATOR, 0)(m)] = (
-            value * m.numeric_data[numeric(m, "motor_max_current")]
+            m.numeric_data[numeric(m, "motor_kt")] * m.numeric_data[numeric(m, "motor_max_current")]
         )
 
     return read, write
@@ -258,14 +242,14 @@ def _parameters() -> tuple[LegParameter, ...]:
             "motor current at activation 1 (A): the motors' gain",
             1.0,
             30.0,
-            _max_current(),
+            _gain_factor("motor_max_current"),
         ),
         p(
             "motor_kt_nm_per_a",
             "the motors' torque constant (N m/A), equal to their back-EMF constant (V s/rad)",
             0.005,
             1.0,
-            _torque_constant(),
+            _gain_factor("motor_kt"),
         ),
         p(
             "motor_resistance_ohm",
