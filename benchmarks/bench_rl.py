@@ -11,10 +11,11 @@ into --out: results.csv (one row per job), summary.json and a markdown table. --
 results.csv of several runs (methods at different budgets, rates or babbling lengths) and writes their
 joint summary.json, table.md and best_reward.png into --out.
 
-A variant's label is its method, then "@78Hz" for an RL method at frame skip 1 and "babbling N s" for G2P
-with other than the paper's 5 min. Every figure is a median over seeds with the bootstrap 95 % interval
-of the median (10,000 resamples); a seed that never crossed the threshold counts as never (infinite
-time), so the median is "never" when half of them did not.
+A variant's label is its method, then "@78Hz" for an RL method at frame skip 1, and for G2P "babbling N s"
+and "cycle N ticks" when they differ from the paper's 5 min and 80 ticks. Every figure is a median over
+seeds with the bootstrap 95 % interval of the median (10,000 resamples); a seed that never crossed the
+threshold counts as never (infinite time), so the median is "never" when half of them did not; "none" is
+a best reward before any episode or attempt ended.
 """
 
 from __future__ import annotations
@@ -55,14 +56,22 @@ def label(row: dict[str, Any]) -> str:
         name += "@78Hz"
     if name.startswith("g2p") and float(row.get("babbling_s") or 0):
         name += f" babbling {float(row['babbling_s']):g} s"
+    if name.startswith("g2p") and float(row.get("cycle_ticks") or 0):
+        name += f" cycle {float(row['cycle_ticks']):g} ticks"
     return name
 
 
-def median_ci(values: list[float | None], seed: int = 0) -> tuple[float, float, float] | None:
-    """Median and bootstrap 95 % interval of the median; None counts as +inf (never). None if no values."""
+def median_ci(
+    values: list[float | None], missing: float = math.inf, seed: int = 0
+) -> tuple[float, float, float] | None:
+    """Median and bootstrap 95 % interval of the median; None counts as `missing`. None if no values.
+
+    A time that never came counts as +inf ("never"); a best reward before any episode ended as -inf
+    ("none").
+    """
     if not values:
         return None
-    v = np.array([math.inf if x is None else float(x) for x in values])
+    v = np.array([missing if x is None else float(x) for x in values])
     rng = np.random.default_rng(seed)
     medians = np.median(rng.choice(v, size=(BOOTSTRAP, len(v))), axis=1)
     low, high = np.quantile(medians, [0.025, 0.975], method="inverted_cdf")
@@ -86,7 +95,7 @@ def summarize(rows: list[dict[str, Any]], threshold_mm: float) -> dict[str, Any]
         for mark in MARKS_S:
             key = f"best_mm_{mark / 60:g}min"
             # A mark beyond the budget is not reported (the run did not get that far).
-            entry[key] = median_ci([r[key] for r in runs]) if mark <= budget_s * 1.001 else None
+            entry[key] = median_ci([r[key] for r in runs], -math.inf) if mark <= budget_s * 1.001 else None
         entry["eval_mm"] = median_ci([r["eval_mm"] for r in runs])
         entry["eval_j_per_mm"] = median_ci([r["eval_j_per_mm"] for r in runs])
         paper_stop = [r.get("paper_stop_s") for r in runs if r.get("paper_stop_s") is not None]
@@ -103,7 +112,7 @@ def markdown(summary: dict[str, Any]) -> str:
     def fmt(m: tuple[float, float, float] | None, unit: str = "", digits: int = 0) -> str:
         if m is None:
             return "-"
-        parts = ["never" if math.isinf(x) else f"{x:.{digits}f}" for x in m]
+        parts = [("never" if x > 0 else "none") if math.isinf(x) else f"{x:.{digits}f}" for x in m]
         return f"{parts[0]}{'' if math.isinf(m[0]) else unit} [{parts[1]}, {parts[2]}]"
 
     marks = [f"{m / 60:g} min" for m in MARKS_S]
@@ -208,6 +217,7 @@ def main() -> None:
         "--frame-skip", type=int, default=4, help="ticks per RL action (4: 19.5 Hz, 1: 78 Hz)"
     )
     parser.add_argument("--babbling-s", type=float, default=0.0, help="G2P's babbling (s; 0: the paper's)")
+    parser.add_argument("--cycle-ticks", type=int, default=0, help="G2P's cycle (ticks; 0: the paper's 80)")
     parser.add_argument("--calibration", default="", help='the simulated rig: "" (default) or "paper"')
     parser.add_argument(
         "--threshold-mm",
@@ -243,6 +253,7 @@ def main() -> None:
             "calibration": args.calibration,
             "threshold_mm": threshold,
             "babbling_s": args.babbling_s,
+            "cycle_ticks": args.cycle_ticks,
         }
         for m in methods
         for seed in range(args.first_seed, args.first_seed + args.seeds)

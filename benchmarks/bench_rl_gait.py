@@ -1,33 +1,40 @@
-"""What gait PPO finds after 1 h of rig time, beside G2P's best attempt on the same simulated rig.
+"""What gait each method of the comparison ends with, on the same simulated rig run as it runs.
 
-    scripts/with-env python benchmarks/bench_rl_gait.py --seed 0
+    scripts/with-env python benchmarks/bench_rl_gait.py --calibration paper --seed 0
 
-Trains PPO as bench_rl does (g2p.baselines.rl_model: the RL Zoo's MuJoCo defaults, frame_skip 4),
-rolls its deterministic policy out for one 20-cycle episode, and describes it beside G2P's best attempt:
-belt travel (mm), energy (J), the joints' ranges (rad), the dominant frequency of the hip angle (Hz),
-the mean activations. Prints one JSON line per method.
+Runs each method as bench_rl does (g2p.baselines.run_method's curves, --budget-min of rig time), rolls its
+final policy out for one held-out 20-cycle episode (as g2p.baselines.evaluate does), and describes the
+gait: belt travel (mm), energy (J) and energy per mm, the joints' ranges (rad), the dominant frequency of
+the hip angle (Hz), the mean applied activations, and the share of ticks at which each motor is at its
+baseline (0.15) or saturated (>= 0.98). Prints one JSON line per method.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import torch
 
-from g2p.baselines import rl_model
+from g2p.baselines import (
+    HELD_OUT_SEED,
+    RIG_AS_IT_RUNS,
+    Curve,
+    g2p_curve,
+    g2p_then_rl_curve,
+    random_patterns_curve,
+    rl_curve,
+)
 from g2p.envs import TreadmillEnv
-from g2p.experiments import run_treadmill
-from g2p.learner import Learner, LearnerConfig
-from g2p.limit_cycle import LimitCycleConfig
-from g2p.rig import PlantRig
-from g2p.search import SearchConfig
-from g2p.sim import MujocoLeg, MujocoLegConfig
+from g2p.safety import BASELINE_ACTIVATION
+from g2p.sim import MujocoLegConfig
 
 
-def describe(position_rad: np.ndarray, activation: np.ndarray, dt_s: float) -> dict[str, object]:
-    """Joint ranges (rad), the hip angle's dominant frequency (Hz) and mean activations of a gait."""
+def describe(position_rad: np.ndarray, activation: np.ndarray, dt_s: float) -> dict[str, Any]:
+    """A gait from its ticks: positions (N, 2) (rad) and applied activations (N, 3), dt_s apart (s)."""
     hip = position_rad[:, 0] - position_rad[:, 0].mean()
     freq = np.fft.rfftfreq(len(hip), d=dt_s)
     spectrum = np.abs(np.fft.rfft(hip))
@@ -35,56 +42,56 @@ def describe(position_rad: np.ndarray, activation: np.ndarray, dt_s: float) -> d
         "joint_range_rad": np.round(np.ptp(position_rad, axis=0), 3).tolist(),
         "hip_frequency_hz": round(float(freq[1 + np.argmax(spectrum[1:])]), 3),
         "mean_activation": np.round(activation.mean(axis=0), 3).tolist(),
+        "share_at_baseline": np.round(np.mean(activation <= BASELINE_ACTIVATION + 1e-6, axis=0), 3).tolist(),
+        "share_saturated": np.round(np.mean(activation >= 0.98, axis=0), 3).tolist(),
+    }
+
+
+def rollout(curve: Curve, config: MujocoLegConfig) -> dict[str, Any]:
+    """The curve's final policy on one held-out episode of the rig as it runs, described."""
+    assert curve.policy is not None
+    seed = config.seed + HELD_OUT_SEED
+    env = TreadmillEnv(plant_config=replace(config, seed=seed), frame_skip=curve.frame_skip, **RIG_AS_IT_RUNS)
+    obs, _ = env.reset(seed=seed)
+    positions, activations, done = [], [], False
+    info: dict[str, Any] = {}
+    while not done:
+        obs, _, terminated, truncated, info = env.step(curve.policy(obs, env.ticks))
+        positions.append(obs[:2])
+        activations.append(obs[5:8])
+        done = terminated or truncated
+    env.close()
+    travel, energy = float(info["belt_travel_mm"]), float(info["energy_used_j"])
+    return {
+        "belt_travel_mm": round(travel, 1),
+        "energy_j": round(energy, 1),
+        "j_per_mm": round(energy / travel, 2) if travel > 0 else None,
+        "best_training_mm": round(max(e.reward_mm for e in curve.episodes), 1),
+        **describe(np.array(positions), np.array(activations), env.dt),
     }
 
 
 def main() -> None:
-    """Train, roll out, describe."""
+    """Run each method, roll its final policy out, describe it."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--hours", type=float, default=1.0, help="PPO's rig time")
+    parser.add_argument("--calibration", default="", help='the simulated rig: "" (default) or "paper"')
+    parser.add_argument("--budget-min", type=float, default=60.0, help="rig time per method (min)")
+    parser.add_argument("--methods", default="g2p,random,ppo")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    config = MujocoLegConfig(seed=args.seed)
-
-    env = TreadmillEnv(plant_config=config, frame_skip=4)
-    model = rl_model("ppo", env, args.seed)
-    model.learn(total_timesteps=round(args.hours * 3600 * config.tick_hz / env.frame_skip))
-    obs, _ = env.reset(seed=args.seed + 1000)
-    positions, activations, truncated = [], [], False
-    while not truncated:
-        action, _ = model.predict(model.get_env().normalize_obs(obs), deterministic=True)
-        obs, _, _, truncated, info = env.step(action)
-        positions.append(obs[:2])
-        activations.append(obs[5:8])
-    print(
-        json.dumps(
-            {
-                "method": "ppo",
-                "belt_travel_mm": round(info["belt_travel_mm"], 1),
-                "energy_j": round(info["energy_used_j"], 1),
-                **describe(np.array(positions), np.array(activations), env.dt),
-            }
-        )
-    )
-
-    result = run_treadmill(
-        Learner(LearnerConfig(seed=args.seed)),
-        PlantRig(MujocoLeg(config)),
-        SearchConfig(),
-        LimitCycleConfig(),
-    )
-    best = max(result.reports, key=lambda r: r.outcome.reward_mm).outcome
-    print(
-        json.dumps(
-            {
-                "method": "g2p",
-                "belt_travel_mm": round(best.reward_mm, 1),
-                "energy_j": round(best.energy_j, 1),
-                **describe(best.recording.position_rad, best.recording.activation, 1.0 / config.tick_hz),
-            }
-        )
-    )
+    config = MujocoLegConfig(seed=args.seed, calibration=args.calibration)
+    budget_s = args.budget_min * 60.0
+    for method in args.methods.split(","):
+        if method == "g2p":
+            curve = g2p_curve(args.seed, budget_s, config)
+        elif method == "g2p_ppo":
+            curve = g2p_then_rl_curve(args.seed, budget_s, config)
+        elif method == "random":
+            curve = random_patterns_curve(args.seed, budget_s, config)
+        else:
+            curve = rl_curve(method, args.seed, budget_s, 4, config)
+        print(json.dumps({"method": method, **rollout(curve, config)}), flush=True)
 
 
 if __name__ == "__main__":

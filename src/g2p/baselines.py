@@ -13,10 +13,11 @@ final policy is evaluated deterministically on held-out episodes (`evaluate`):
 
 `curve_summary` reduces a curve to the benchmark's figures (benchmarks/bench_rl.py, docs/RL.md), and
 `chance_threshold_mm` finds a threshold relative to chance on a rig: a quantile of random episodes.
-Hyperparameters are the RL Zoo's for MuJoCo tasks (rl-baselines3-zoo hyperparams/ppo.yml, sac.yml,
-tqc.yml): PPO with SB3's defaults and VecNormalize on observations and rewards; SAC with SB3's defaults
-and learning_starts 10,000; TQC with sb3-contrib's defaults and learning_starts 1,000 (the sample-efficient
-baseline: its updates start after 51 s of rig time at 19.5 Hz, not 8.5 min).
+Hyperparameters are the RL Zoo's for MuJoCo tasks (rl-baselines3-zoo hyperparams/ppo.yml and sac.yml): PPO
+with SB3's defaults and VecNormalize on observations and rewards; SAC with SB3's defaults and
+learning_starts 10,000. TQC, the sample-efficient baseline, has sb3-contrib's defaults and learning_starts
+1,000, as the RL Zoo's real-robot entries start early (tqc.yml, WalkingBertSim: 1,200): its updates start
+after 51 s of rig time at 19.5 Hz, not 8.5 min.
 """
 
 from __future__ import annotations
@@ -209,6 +210,7 @@ def _g2p_run(
     budget_s: float,
     learner_config: LearnerConfig | None,
     keep_searching: bool = True,
+    cycle: LimitCycleConfig | None = None,
 ) -> tuple[list[AttemptOutcome], float | None]:
     """G2P on `plant`: babble, then attempts until `budget_s` of rig time.
 
@@ -224,7 +226,7 @@ def _g2p_run(
     learner.babble(rig)
     paper = SearchConfig()
     search = replace(paper, exploitation_attempts=2**31) if keep_searching else paper
-    run = TreadmillRun(learner, search, LimitCycleConfig(), learner.config.seed)
+    run = TreadmillRun(learner, search, cycle or LimitCycleConfig(), learner.config.seed)
     outcomes: list[AttemptOutcome] = []
     paper_stop_s = None
     while not run.finished and plant.time_s < budget_s:
@@ -247,6 +249,7 @@ def g2p_curve(
     budget_s: float,
     plant_config: MujocoLegConfig | None = None,
     learner_config: LearnerConfig | None = None,
+    cycle: LimitCycleConfig | None = None,
 ) -> Curve:
     """G2P on a fresh simulated rig run as it runs, until `budget_s` of rig time, babbling included.
 
@@ -259,11 +262,12 @@ def g2p_curve(
         budget_s: rig time (s); the attempt that crosses it is the last.
         plant_config: the simulated rig (default: MujocoLegConfig(seed=seed)).
         learner_config: the learner (default: LearnerConfig(seed=seed), the paper's 5 min of babbling).
+        cycle: the limit cycles (default: LimitCycleConfig(), the paper's 20 cycles of 80 ticks).
     """
     _check_budget(budget_s)
     cfg = plant_config if plant_config is not None else MujocoLegConfig(seed=seed)
     plant = MujocoLeg(cfg)
-    outcomes, paper_stop_s = _g2p_run(seed, plant, budget_s, learner_config)
+    outcomes, paper_stop_s = _g2p_run(seed, plant, budget_s, learner_config, cycle=cycle)
     rig_time_s = plant.time_s
     plant.close()
     policy = open_loop_policy(_best(outcomes).activations, RIG_AS_IT_RUNS["action_delay_ticks"])
@@ -356,7 +360,7 @@ def chance_threshold_mm(
 
 
 def rl_model(method: str, env: gym.Env[Any, Any], seed: int, **kwargs: Any) -> Any:
-    """A learner for `env` with the RL Zoo's MuJoCo hyperparameters (see the module); `kwargs` override.
+    """A learner for `env` with the hyperparameters of the module's docstring; `kwargs` override.
 
     PPO trains on `VecNormalize(env)` (observations and rewards normalized): act with
     `model.predict(model.get_env().normalize_obs(obs))`. SAC and TQC train on `env` as it is.
@@ -555,6 +559,7 @@ def run_method(
     calibration: str = "",
     threshold_mm: float = THRESHOLD_MM,
     babbling_s: float = 0.0,
+    cycle_ticks: int = 0,
 ) -> dict[str, Any]:
     """One job of the comparison: the curve, its summary, the held-out evaluation, wall and CPU time (s).
 
@@ -567,14 +572,21 @@ def run_method(
             paper-like rig).
         threshold_mm: the threshold the summary's rig time to threshold counts to.
         babbling_s: G2P's babbling (s); 0: the paper's 5 min.
+        cycle_ticks: G2P's limit-cycle period (ticks, a multiple of its 10 spokes dividing 1600); 0: the
+            paper's 80 (0.98 Hz). An attempt stays 1600 ticks: 1600 / cycle_ticks cycles.
     """
     wall0, cpu0 = time.perf_counter(), time.process_time()
     cfg = MujocoLegConfig(seed=seed, calibration=calibration)
     learner = LearnerConfig(seed=seed)
     if babbling_s:
         learner = replace(learner, babbling=replace(learner.babbling, duration_s=babbling_s))
+    cycle = None
+    if cycle_ticks:
+        if cycle_ticks % 10 or 1600 % cycle_ticks:
+            raise ValueError(f"cycle_ticks: a multiple of 10 that divides 1600, got {cycle_ticks}")
+        cycle = LimitCycleConfig(samples_per_segment=cycle_ticks // 10, n_cycles=1600 // cycle_ticks)
     if method == "g2p":
-        curve = g2p_curve(seed, budget_s, cfg, learner)
+        curve = g2p_curve(seed, budget_s, cfg, learner, cycle)
     elif method == "g2p_ppo":
         curve = g2p_then_rl_curve(seed, budget_s, cfg, learner)
     elif method == "random":

@@ -24,6 +24,7 @@ from g2p.baselines import (
     open_loop_policy,
     random_patterns_curve,
     rl_curve,
+    run_method,
 )
 from g2p.envs import TreadmillEnv
 from g2p.learner import LearnerConfig
@@ -73,11 +74,13 @@ def test_episode_log_and_rig_time() -> None:
     assert env.episodes[1].reward_mm == info["belt_travel_mm"]
 
 
-def test_rl_curve_rejects_bad_arguments() -> None:
+def test_bad_arguments_are_refused_before_any_rig_time() -> None:
     with pytest.raises(ValueError, match="method"):
         rl_curve("dqn", 0, 10.0)
     with pytest.raises(ValueError, match="budget_s"):
         rl_curve("ppo", 0, 0.0)
+    with pytest.raises(ValueError, match="cycle_ticks"):
+        run_method("g2p", 0, 10.0, cycle_ticks=35)
 
 
 def test_curve_summary_known_answers() -> None:
