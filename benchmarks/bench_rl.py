@@ -162,7 +162,7 @@ def plot(rows: list[dict[str, Any]], threshold_mm: float, title: str, out: Path)
         ax.plot(grid, med, color=colour, linestyle=style, label=f"{name} ({len(runs)} seeds)")
         ax.fill_between(grid, low, high, color=colour, alpha=0.15, linewidth=0)
     ax.axhline(
-        threshold_mm, color="grey", linestyle="--", linewidth=0.8, label=f"chance p95 {threshold_mm:g} mm"
+        threshold_mm, color="grey", linestyle="--", linewidth=0.8, label=f"threshold {threshold_mm:g} mm"
     )
     for mark in MARKS_S:
         ax.axvline(mark, color="grey", linestyle=":", linewidth=0.8)
