@@ -2,7 +2,7 @@
 
     scripts/with-env python benchmarks/bench_rl_gait.py --calibration paper --seed 0
 
-Runs each method as bench_rl does (g2p.baselines.run_method's curves, --budget-min of rig time), rolls its
+Runs each method as bench_rl does (g2p.baselines.method_curve, --budget-min of rig time), rolls its
 final policy out for one held-out 20-cycle episode (as g2p.baselines.evaluate does), and describes the
 gait: belt travel (mm), energy (J) and energy per mm, the joints' ranges (rad), the dominant frequency of
 the hip angle (Hz), the mean applied activations, and the share of ticks at which each motor is at its
@@ -19,15 +19,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from g2p.baselines import (
-    HELD_OUT_SEED,
-    RIG_AS_IT_RUNS,
-    Curve,
-    g2p_curve,
-    g2p_then_rl_curve,
-    random_patterns_curve,
-    rl_curve,
-)
+from g2p.baselines import HELD_OUT_SEED, RIG_AS_IT_RUNS, Curve, method_curve
 from g2p.envs import TreadmillEnv
 from g2p.safety import BASELINE_ACTIVATION
 from g2p.sim import MujocoLegConfig
@@ -83,14 +75,7 @@ def main() -> None:
     config = MujocoLegConfig(seed=args.seed, calibration=args.calibration)
     budget_s = args.budget_min * 60.0
     for method in args.methods.split(","):
-        if method == "g2p":
-            curve = g2p_curve(args.seed, budget_s, config)
-        elif method == "g2p_ppo":
-            curve = g2p_then_rl_curve(args.seed, budget_s, config)
-        elif method == "random":
-            curve = random_patterns_curve(args.seed, budget_s, config)
-        else:
-            curve = rl_curve(method, args.seed, budget_s, 4, config)
+        curve = method_curve(method, args.seed, budget_s, config)
         print(json.dumps({"method": method, **rollout(curve, config)}), flush=True)
 
 

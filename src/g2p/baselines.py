@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any, SupportsFloat
 
 import gymnasium as gym
@@ -96,7 +96,7 @@ class Curve:
     rig_time_s: float
     policy: Policy | None = None
     frame_skip: int = 1
-    marks: dict[str, float] | None = None
+    marks: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -236,6 +236,11 @@ def _g2p_run(
     return outcomes, paper_stop_s
 
 
+def _paper_stop(paper_stop_s: float | None) -> dict[str, float]:
+    """A G2P curve's marks: where the paper's run ended (none if the budget ended first)."""
+    return {} if paper_stop_s is None else {"paper_stop_s": paper_stop_s}
+
+
 def _episodes(outcomes: list[AttemptOutcome]) -> list[Episode]:
     return [Episode(float(o.recording.t_s[-1]), o.reward_mm, o.energy_j) for o in outcomes]
 
@@ -271,8 +276,7 @@ def g2p_curve(
     rig_time_s = plant.time_s
     plant.close()
     policy = open_loop_policy(_best(outcomes).activations, RIG_AS_IT_RUNS["action_delay_ticks"])
-    marks = {"paper_stop_s": paper_stop_s} if paper_stop_s is not None else {}
-    return Curve(_episodes(outcomes), rig_time_s, policy, 1, marks)
+    return Curve(_episodes(outcomes), rig_time_s, policy, 1, _paper_stop(paper_stop_s))
 
 
 def random_patterns_curve(
@@ -489,9 +493,8 @@ def g2p_then_rl_curve(
 
     G2P runs as the paper does (to its 15th exploitation attempt, or the budget); PPO then trains a
     residual policy on the same rig (its clock, heat and wear carry on) at 78 Hz, the rate G2P's gait is
-    played at
-    (ResidualGait; PPO's initial policy has mean 0, G2P's gait, and log_std_init -1: each activation's
-    exploration noise starts at RESIDUAL_SCALE x 0.37 = 0.11).
+    played at (ResidualGait; PPO's initial policy has mean 0, G2P's gait, and log_std_init -1: each
+    activation's exploration noise starts at RESIDUAL_SCALE x 0.37 = 0.11).
 
     Raises:
         ValueError: a non-positive budget.
@@ -513,8 +516,7 @@ def g2p_then_rl_curve(
         policy = open_loop_policy(gait, RIG_AS_IT_RUNS["action_delay_ticks"])
     rig_time_s = plant.time_s
     plant.close()
-    marks = {"paper_stop_s": paper_stop_s} if paper_stop_s is not None else {}
-    return Curve(episodes + log.episodes, rig_time_s, policy, 1, marks)
+    return Curve(episodes + log.episodes, rig_time_s, policy, 1, _paper_stop(paper_stop_s))
 
 
 def _check_budget(budget_s: float) -> None:
@@ -551,6 +553,33 @@ def curve_summary(curve: Curve, threshold_mm: float = THRESHOLD_MM) -> dict[str,
     }
 
 
+def method_curve(
+    method: str,
+    seed: int,
+    budget_s: float,
+    plant_config: MujocoLegConfig,
+    frame_skip: int = 4,
+    babbling_s: float = 0.0,
+    cycle_ticks: int = 0,
+) -> Curve:
+    """One method's curve on `plant_config` (the arguments as `run_method`'s)."""
+    learner = LearnerConfig(seed=seed)
+    if babbling_s:
+        learner = replace(learner, babbling=replace(learner.babbling, duration_s=babbling_s))
+    cycle = None
+    if cycle_ticks:
+        if cycle_ticks % 10 or 1600 % cycle_ticks:
+            raise ValueError(f"cycle_ticks: a multiple of 10 that divides 1600, got {cycle_ticks}")
+        cycle = LimitCycleConfig(samples_per_segment=cycle_ticks // 10, n_cycles=1600 // cycle_ticks)
+    if method == "g2p":
+        return g2p_curve(seed, budget_s, plant_config, learner, cycle)
+    if method == "g2p_ppo":
+        return g2p_then_rl_curve(seed, budget_s, plant_config, learner)
+    if method == "random":
+        return random_patterns_curve(seed, budget_s, plant_config)
+    return rl_curve(method, seed, budget_s, frame_skip, plant_config)
+
+
 def run_method(
     method: str,
     seed: int,
@@ -577,28 +606,13 @@ def run_method(
     """
     wall0, cpu0 = time.perf_counter(), time.process_time()
     cfg = MujocoLegConfig(seed=seed, calibration=calibration)
-    learner = LearnerConfig(seed=seed)
-    if babbling_s:
-        learner = replace(learner, babbling=replace(learner.babbling, duration_s=babbling_s))
-    cycle = None
-    if cycle_ticks:
-        if cycle_ticks % 10 or 1600 % cycle_ticks:
-            raise ValueError(f"cycle_ticks: a multiple of 10 that divides 1600, got {cycle_ticks}")
-        cycle = LimitCycleConfig(samples_per_segment=cycle_ticks // 10, n_cycles=1600 // cycle_ticks)
-    if method == "g2p":
-        curve = g2p_curve(seed, budget_s, cfg, learner, cycle)
-    elif method == "g2p_ppo":
-        curve = g2p_then_rl_curve(seed, budget_s, cfg, learner)
-    elif method == "random":
-        curve = random_patterns_curve(seed, budget_s, cfg)
-    else:
-        curve = rl_curve(method, seed, budget_s, frame_skip, cfg)
+    curve = method_curve(method, seed, budget_s, cfg, frame_skip, babbling_s, cycle_ticks)
     train_wall_s = time.perf_counter() - wall0
     assert curve.policy is not None
     held_out = evaluate(curve.policy, cfg, curve.frame_skip)
     return {
         **curve_summary(curve, threshold_mm),
-        **(curve.marks or {}),
+        **curve.marks,
         "eval_mm": float(np.mean(held_out.travel_mm)),
         "eval_j_per_mm": held_out.j_per_mm,
         "eval_travel_mm": held_out.travel_mm.tolist(),
