@@ -50,7 +50,7 @@ BOOTSTRAP = 10_000
 
 
 def label(row: dict[str, Any]) -> str:
-    """The variant a row belongs to: its method, its rate (RL at 78 Hz) and its babbling (G2P)."""
+    """The variant a row belongs to: its method, its rate (RL at 78 Hz), G2P's babbling, cycle, refinement."""
     name = str(row["method"])
     if name in RL_METHODS and int(row["frame_skip"]) == 1:
         name += "@78Hz"
@@ -58,6 +58,8 @@ def label(row: dict[str, Any]) -> str:
         name += f" babbling {float(row['babbling_s']):g} s"
     if name.startswith("g2p") and float(row.get("cycle_ticks") or 0):
         name += f" cycle {float(row['cycle_ticks']):g} ticks"
+    if name.startswith("g2p") and float(row.get("recent_attempts") or 0):
+        name += f" refined on last {float(row['recent_attempts']):g} attempts"
     return name
 
 
@@ -218,6 +220,12 @@ def main() -> None:
     )
     parser.add_argument("--babbling-s", type=float, default=0.0, help="G2P's babbling (s; 0: the paper's)")
     parser.add_argument("--cycle-ticks", type=int, default=0, help="G2P's cycle (ticks; 0: the paper's 80)")
+    parser.add_argument(
+        "--recent-attempts",
+        type=int,
+        default=0,
+        help="G2P refines on babbling and this many last attempts (0: every attempt, the paper's)",
+    )
     parser.add_argument("--calibration", default="", help='the simulated rig: "" (default) or "paper"')
     parser.add_argument(
         "--threshold-mm",
@@ -254,6 +262,7 @@ def main() -> None:
             "threshold_mm": threshold,
             "babbling_s": args.babbling_s,
             "cycle_ticks": args.cycle_ticks,
+            "recent_attempts": args.recent_attempts,
         }
         for m in methods
         for seed in range(args.first_seed, args.first_seed + args.seeds)

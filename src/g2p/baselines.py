@@ -561,9 +561,10 @@ def method_curve(
     frame_skip: int = 4,
     babbling_s: float = 0.0,
     cycle_ticks: int = 0,
+    recent_attempts: int = 0,
 ) -> Curve:
     """One method's curve on `plant_config` (the arguments as `run_method`'s)."""
-    learner = LearnerConfig(seed=seed)
+    learner = LearnerConfig(seed=seed, refine_recent_attempts=recent_attempts)
     if babbling_s:
         learner = replace(learner, babbling=replace(learner.babbling, duration_s=babbling_s))
     cycle = None
@@ -589,6 +590,7 @@ def run_method(
     threshold_mm: float = THRESHOLD_MM,
     babbling_s: float = 0.0,
     cycle_ticks: int = 0,
+    recent_attempts: int = 0,
 ) -> dict[str, Any]:
     """One job of the comparison: the curve, its summary, the held-out evaluation, wall and CPU time (s).
 
@@ -603,10 +605,12 @@ def run_method(
         babbling_s: G2P's babbling (s); 0: the paper's 5 min.
         cycle_ticks: G2P's limit-cycle period (ticks, a multiple of its 10 spokes dividing 1600); 0: the
             paper's 80 (0.98 Hz). An attempt stays 1600 ticks: 1600 / cycle_ticks cycles.
+        recent_attempts: G2P refines its map on the babbling and this many most recent attempts; 0:
+            on every attempt (the paper's).
     """
     wall0, cpu0 = time.perf_counter(), time.process_time()
     cfg = MujocoLegConfig(seed=seed, calibration=calibration)
-    curve = method_curve(method, seed, budget_s, cfg, frame_skip, babbling_s, cycle_ticks)
+    curve = method_curve(method, seed, budget_s, cfg, frame_skip, babbling_s, cycle_ticks, recent_attempts)
     train_wall_s = time.perf_counter() - wall0
     assert curve.policy is not None
     held_out = evaluate(curve.policy, cfg, curve.frame_skip)

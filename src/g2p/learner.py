@@ -1,7 +1,8 @@
 """The G2P learner's memory: every (kinematics, activation) pair it has seen, and the inverse map.
 
 Babbling fits the map; every attempt, good or bad, adds its data (minus the transition from rest) and
-refines the map from its current weights on all data so far (paper, Fig 3).
+refines the map from its current weights on all data so far (paper, Fig 3), or, as a variant, on the
+babbling and the most recent attempts only.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 from g2p.attempt import AttemptOutcome, run_attempt
 from g2p.babbling import BabblingConfig, babbling_activations
 from g2p.closed_loop import ControlMode, FeedbackConfig
-from g2p.config import ConfigError, require_positive
+from g2p.config import ConfigError, require, require_positive
 from g2p.inverse_map import FitCancelled, FitReport, InverseMap, InverseMapConfig
 from g2p.kinematics import PreprocessConfig, TrainingPairs, recording_pairs
 from g2p.limit_cycle import LimitCycleConfig
@@ -37,6 +38,8 @@ class LearnerConfig:
         inverse_map: network and training.
         control: how attempts are played: open loop (the paper's G2P) or closed loop.
         feedback: the closed loop's settings (used in closed loop only).
+        refine_recent_attempts: the attempts whose data refines the map beside the babbling: the most
+            recent N; 0: every attempt so far (the paper's).
     """
 
     seed: int = 0
@@ -46,9 +49,15 @@ class LearnerConfig:
     inverse_map: InverseMapConfig = field(default_factory=InverseMapConfig)
     control: ControlMode = ControlMode.OPEN
     feedback: FeedbackConfig = field(default_factory=FeedbackConfig)
+    refine_recent_attempts: int = 0
 
     def __post_init__(self) -> None:
         require_positive(self.babbling_chunk_s, "babbling_chunk_s")
+        require(
+            self.refine_recent_attempts >= 0,
+            "refine_recent_attempts",
+            f"must be >= 0, got {self.refine_recent_attempts}",
+        )
         try:
             object.__setattr__(self, "control", ControlMode(self.control))
         except ValueError as err:
@@ -60,6 +69,10 @@ class LearnerConfig:
     def closed_loop_feedback(self) -> FeedbackConfig | None:
         """The feedback settings attempts are played with; None in open loop."""
         return self.feedback if self.control is ControlMode.CLOSED else None
+
+
+BABBLING = "babbling"
+"""The label of the dataset's babbling segments."""
 
 
 @dataclass
@@ -77,6 +90,18 @@ class Dataset:
         return (
             np.concatenate([p.kinematics for _, p in self.segments]),
             np.concatenate([p.activation for _, p in self.segments]),
+        )
+
+    def recent(self, attempts: int) -> np.ndarray:
+        """Which of the K samples of `arrays` are babbling's or the last `attempts` others', shape (K,) bool.
+
+        Args:
+            attempts: how many of the latest non-babbling segments to keep; 0: all of them.
+        """
+        others = [i for i, (label, _) in enumerate(self.segments) if label != BABBLING]
+        kept = set(others[-attempts:] if attempts else others)
+        return np.concatenate(
+            [np.full(len(p), label == BABBLING or i in kept) for i, (label, p) in enumerate(self.segments)]
         )
 
     def __len__(self) -> int:
@@ -172,7 +197,7 @@ class Learner:
         """
         self.dataset = Dataset()
         for rec in babbling:
-            self.dataset.add("babbling", recording_pairs(rec, self.config.preprocess))
+            self.dataset.add(BABBLING, recording_pairs(rec, self.config.preprocess))
         self.babbling_recordings = tuple(babbling)
         self.babbling_recording = concatenate(babbling)
         for label, rec in attempts:
@@ -210,14 +235,19 @@ class Learner:
     def refine_with(
         self, recording: Recording, label: str, cancel: threading.Event | None = None
     ) -> FitReport:
-        """Add an attempt's data (without its transition from rest) and refine the map on all data.
+        """Add an attempt's data (without its transition from rest) and refine the map.
+
+        The refinement trains on all data, or with `refine_recent_attempts` on the babbling and the recent
+        attempts.
 
         Raises:
             FitCancelled: `cancel` was set during the refinement; the data and the map are as before.
         """
         self.dataset.add(label, self._attempt_pairs(recording))
         try:
-            report = self.inverse_map.refine(*self.dataset.arrays(), self._map_rng, cancel)
+            recent = self.config.refine_recent_attempts
+            rows = self.dataset.recent(recent) if recent else None
+            report = self.inverse_map.refine(*self.dataset.arrays(), self._map_rng, cancel, rows)
         except FitCancelled:
             self.dataset.segments.pop()
             raise

@@ -112,6 +112,21 @@ def test_refine_keeps_normalization_and_split() -> None:
     assert mask.mean() == pytest.approx(0.15, abs=0.01)
     with pytest.raises(InverseMapError, match="all data so far"):
         net.refine(x[:500], known_map(x[:500]), rng)
+    with pytest.raises(InverseMapError, match="rows"):
+        net.refine(x2, known_map(x2 / 3), rng, rows=np.ones(1000, dtype=bool))
+
+
+def test_a_refinement_on_some_rows_trains_and_validates_on_those_and_keeps_every_split() -> None:
+    rng = np.random.default_rng(6)
+    x = sample(rng, 1000)
+    net = InverseMap(InverseMapConfig(max_iterations_fit=20, max_iterations_refine=5))
+    net.fit(x, known_map(x), rng)
+    x2 = np.vstack([x, sample(rng, 400)])
+    rows = np.arange(1400) >= 600  # the last 400 of the fit's samples and the new ones
+    report = net.refine(x2, known_map(x2), rng, rows=rows)
+    mask = net.validation_mask
+    assert mask is not None and mask.shape == (1400,)
+    assert (report.n_train, report.n_validation) == (int((~mask & rows).sum()), int((mask & rows).sum()))
 
 
 def test_same_seed_same_weights_other_seed_differs() -> None:

@@ -194,6 +194,7 @@ class InverseMap:
         y_all: ArrayLike,
         rng: np.random.Generator,
         cancel: threading.Event | None = None,
+        rows: NDArray[np.bool_] | None = None,
     ) -> FitReport:
         """Continue training from the current weights on all data so far (babbling + every attempt).
 
@@ -208,6 +209,8 @@ class InverseMap:
             y_all: activations, shape (N, 3), finite.
             rng: source of the validation split and minibatch order.
             cancel: when set, the refinement stops with FitCancelled and the map is left as it was.
+            rows: the samples this refinement trains and validates on, shape (N,) bool; None: all. Every
+                sample still gets its side of the split, so a later refinement on other rows keeps it.
 
         Returns:
             What the refinement did (also kept in `last_report`).
@@ -218,13 +221,15 @@ class InverseMap:
         """
         self._require_fitted()
         xa, ya = _check_data(x_all, y_all, self.config)
+        if rows is not None and (np.shape(rows) != (len(xa),) or np.asarray(rows).dtype != np.bool_):
+            raise InverseMapError(f"rows: expected a bool array of shape ({len(xa)},), got {np.shape(rows)}")
         if self._is_validation is not None and len(xa) < len(self._is_validation):
             raise InverseMapError(
                 f"x_all: refine needs all data so far, got {len(xa)} samples after {len(self._is_validation)}"
             )
         before = self._is_validation
         try:
-            return self._train(xa, ya, rng, self.config.max_iterations_refine, cancel)
+            return self._train(xa, ya, rng, self.config.max_iterations_refine, cancel, rows)
         except FitCancelled:
             self._is_validation = before
             raise
@@ -404,13 +409,16 @@ class InverseMap:
         rng: np.random.Generator,
         max_iterations: int,
         cancel: threading.Event | None,
+        rows: NDArray[np.bool_] | None = None,
     ) -> FitReport:
         from g2p.inverse_map.training import train  # torch: see the module docstring
 
         params, xs, ys = self._require_fitted()
         cfg = self.config
         self._is_validation = _extend_split(self._is_validation, len(x), cfg.validation_fraction, rng)
-        val, train_rows = np.flatnonzero(self._is_validation), np.flatnonzero(~self._is_validation)
+        used = np.ones(len(x), dtype=bool) if rows is None else rows
+        val = np.flatnonzero(self._is_validation & used)
+        train_rows = np.flatnonzero(~self._is_validation & used)
         xn, yn = xs.forward(x), ys.forward(y)
         start = time.perf_counter()
         result = train(
