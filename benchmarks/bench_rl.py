@@ -9,10 +9,12 @@ Each job (g2p.baselines.run_method) is one method and one seed on a fresh simula
 the sweep runner (g2p.sweep, Ray: local by default, a cluster with --address or RAY_ADDRESS). A run writes
 into --out: results.csv (one row per job), summary.json and a markdown table. --summarize reads the
 results.csv of several runs (methods at different budgets, rates or babbling lengths) and writes their
-joint summary.json, table.md and best_reward.png into --out.
+joint summary.json, table.md and best_reward.png into --out; --marks-min sets the table's marks (the best
+reward by each, from every run's curve).
 
-A variant's label is its method, then "@78Hz" for an RL method at frame skip 1, and for G2P "babbling N s"
-and "cycle N ticks" when they differ from the paper's 5 min and 80 ticks. Every figure is a median over
+A variant's label is its method, then "@78Hz" for an RL method at frame skip 1, and for G2P "babbling N s",
+"cycle N ticks" and "refined on last N attempts" when they differ from the paper's 5 min, 80 ticks and
+every attempt. Every figure is a median over
 seeds with the bootstrap 95 % interval of the median (10,000 resamples); a seed that never crossed the
 threshold counts as never (infinite time), so the median is "never" when half of them did not; "none" is
 a best reward before any episode or attempt ended.
@@ -80,12 +82,20 @@ def median_ci(
     return float(np.median(v)), float(low), float(high)
 
 
-def summarize(rows: list[dict[str, Any]], threshold_mm: float) -> dict[str, Any]:
-    """Per variant: seeds, crossings, rig time to the threshold, best by each mark, held-out evaluation."""
+def best_by(row: dict[str, Any], mark_s: float) -> float | None:
+    """A run's best reward (mm) among its episodes ended by rig time `mark_s` (s); None before the first."""
+    done = np.asarray(row["curve_reward_mm"])[np.asarray(row["curve_rig_time_s"]) <= mark_s]
+    return float(done.max()) if len(done) else None
+
+
+def summarize(
+    rows: list[dict[str, Any]], threshold_mm: float, marks_s: tuple[float, ...] = MARKS_S
+) -> dict[str, Any]:
+    """Per variant: seeds, crossings, rig time to the threshold, best by each mark (s), held-out figures."""
     variants: dict[str, list[dict[str, Any]]] = {}
     for row in rows:
         variants.setdefault(label(row), []).append(row)
-    summary: dict[str, Any] = {"threshold_mm": threshold_mm, "variants": {}}
+    summary: dict[str, Any] = {"threshold_mm": threshold_mm, "marks_s": list(marks_s), "variants": {}}
     for name, runs in variants.items():
         budget_s = min(float(r["budget_s"]) for r in runs)
         entry: dict[str, Any] = {
@@ -94,10 +104,12 @@ def summarize(rows: list[dict[str, Any]], threshold_mm: float) -> dict[str, Any]
             "crossed": sum(r["rig_time_to_threshold_s"] is not None for r in runs),
             "rig_time_to_threshold_s": median_ci([r["rig_time_to_threshold_s"] for r in runs]),
         }
-        for mark in MARKS_S:
-            key = f"best_mm_{mark / 60:g}min"
+        for mark in marks_s:
             # A mark beyond the budget is not reported (the run did not get that far).
-            entry[key] = median_ci([r[key] for r in runs], -math.inf) if mark <= budget_s * 1.001 else None
+            best = [best_by(r, mark) for r in runs]
+            entry[f"best_mm_{mark / 60:g}min"] = (
+                median_ci(best, -math.inf) if mark <= budget_s * 1.001 else None
+            )
         entry["eval_mm"] = median_ci([r["eval_mm"] for r in runs])
         entry["eval_j_per_mm"] = median_ci([r["eval_j_per_mm"] for r in runs])
         paper_stop = [r.get("paper_stop_s") for r in runs if r.get("paper_stop_s") is not None]
@@ -117,7 +129,7 @@ def markdown(summary: dict[str, Any]) -> str:
         parts = [("never" if x > 0 else "none") if math.isinf(x) else f"{x:.{digits}f}" for x in m]
         return f"{parts[0]}{'' if math.isinf(m[0]) else unit} [{parts[1]}, {parts[2]}]"
 
-    marks = [f"{m / 60:g} min" for m in MARKS_S]
+    marks = [f"{m / 60:g} min" for m in summary["marks_s"]]
     lines = [
         f"| variant | seeds | crossed {summary['threshold_mm']:g} mm | rig time to it | "
         + " | ".join(f"best by {m}" for m in marks)
@@ -125,7 +137,7 @@ def markdown(summary: dict[str, Any]) -> str:
         "| --- " * (7 + len(marks)) + "|",
     ]
     for name, v in summary["variants"].items():
-        best = [fmt(v[f"best_mm_{m / 60:g}min"], " mm") for m in MARKS_S]
+        best = [fmt(v[f"best_mm_{m / 60:g}min"], " mm") for m in summary["marks_s"]]
         lines.append(
             f"| {name} | {v['seeds']} | {v['crossed']}/{v['seeds']} | "
             f"{fmt(v['rig_time_to_threshold_s'], ' s')} | {' | '.join(best)} | {fmt(v['eval_mm'], ' mm')} | "
@@ -134,7 +146,9 @@ def markdown(summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def plot(rows: list[dict[str, Any]], threshold_mm: float, title: str, out: Path) -> None:
+def plot(
+    rows: list[dict[str, Any]], threshold_mm: float, title: str, out: Path, marks_s: tuple[float, ...]
+) -> None:
     """Best reward so far against rig time (log scale): median over seeds, and its bootstrap interval."""
     grid = np.logspace(1, math.log10(max(float(r["rig_time_s"]) for r in rows) * 1.05), 200)
     variants: dict[str, list[dict[str, Any]]] = {}
@@ -166,7 +180,7 @@ def plot(rows: list[dict[str, Any]], threshold_mm: float, title: str, out: Path)
     ax.axhline(
         threshold_mm, color="grey", linestyle="--", linewidth=0.8, label=f"threshold {threshold_mm:g} mm"
     )
-    for mark in MARKS_S:
+    for mark in marks_s:
         ax.axvline(mark, color="grey", linestyle=":", linewidth=0.8)
     ax.set_xscale("log")
     ax.set_xlabel("rig time (s, log scale; babbling and resets included)")
@@ -195,16 +209,18 @@ def read_rows(path: Path) -> list[dict[str, Any]]:
         return [{k: _cell(v) for k, v in row.items()} for row in csv.DictReader(f)]
 
 
-def write_summary(rows: list[dict[str, Any]], threshold_mm: float, calibration: str, out: Path) -> None:
+def write_summary(
+    rows: list[dict[str, Any]], threshold_mm: float, calibration: str, out: Path, marks_s: tuple[float, ...]
+) -> None:
     """summary.json, table.md and best_reward.png of `rows` into `out`; print the table."""
-    summary = summarize(rows, threshold_mm)
+    summary = summarize(rows, threshold_mm, marks_s)
     summary["calibration"] = calibration
     out.mkdir(parents=True, exist_ok=True)
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     table = markdown(summary)
     (out / "table.md").write_text(table + "\n")
     rig = "sim_paper" if calibration == "paper" else calibration or "the default rig"
-    plot(rows, threshold_mm, f"Best reward so far on {rig}, run as it runs", out / "best_reward.png")
+    plot(rows, threshold_mm, f"Best reward so far on {rig}, run as it runs", out / "best_reward.png", marks_s)
     print(table)
 
 
@@ -236,14 +252,16 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=None, help="local Ray CPUs (default: all)")
     parser.add_argument("--address", default=None, help="a Ray cluster (default: RAY_ADDRESS, else local)")
     parser.add_argument("--summarize", type=Path, nargs="+", help="runs' --out directories to summarize")
+    parser.add_argument("--marks-min", default="2,10,30,60", help="the table's marks of rig time (min)")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
+    marks_s = tuple(float(m) * 60.0 for m in args.marks_min.split(","))
     if args.summarize:
         rows = [row for d in args.summarize for row in read_rows(d / "results.csv")]
         thresholds = {float(r["threshold_mm"]) for r in rows}
         if len(thresholds) != 1:
             parser.error(f"the runs counted to different thresholds: {sorted(thresholds)}")
-        write_summary(rows, thresholds.pop(), str(rows[0]["calibration"] or ""), args.out)
+        write_summary(rows, thresholds.pop(), str(rows[0]["calibration"] or ""), args.out, marks_s)
         return
     threshold = args.threshold_mm
     if threshold is None:
@@ -270,7 +288,7 @@ def main() -> None:
     result = run_sweep(run_method, jobs, address=args.address, workers=args.workers, desc="bench_rl")
     args.out.mkdir(parents=True, exist_ok=True)
     result.write_csv(args.out / "results.csv")
-    summary = summarize(read_rows(args.out / "results.csv"), threshold) if result.rows else {}
+    summary = summarize(read_rows(args.out / "results.csv"), threshold, marks_s) if result.rows else {}
     summary["sweep_wall_s"] = result.wall_s
     summary["failures"] = [{"params": f.params, "error": f.error} for f in result.failures]
     (args.out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
