@@ -114,6 +114,7 @@ def summarize(
         entry["eval_j_per_mm"] = median_ci([r["eval_j_per_mm"] for r in runs])
         paper_stop = [r.get("paper_stop_s") for r in runs if r.get("paper_stop_s") is not None]
         entry["paper_stop_s"] = float(np.median(np.array(paper_stop, dtype=float))) if paper_stop else None
+        entry["faults"] = int(sum(r.get("faults") or 0 for r in runs))  # G2P's attempts a limit tripped
         entry["wall_s"] = float(np.median([r["wall_s"] for r in runs]))
         entry["cpu_s"] = float(np.median([r["cpu_s"] for r in runs]))
         summary["variants"][name] = entry

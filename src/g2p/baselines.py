@@ -38,7 +38,7 @@ from g2p.experiments import TreadmillRun
 from g2p.learner import Learner, LearnerConfig
 from g2p.limit_cycle import LimitCycleConfig
 from g2p.plant import N_MOTORS
-from g2p.rig import PlantRig
+from g2p.rig import PlantRig, RigError
 from g2p.safety import BASELINE_ACTIVATION
 from g2p.search import SearchConfig
 from g2p.sim import MujocoLeg, MujocoLegConfig
@@ -89,7 +89,8 @@ class Curve:
         rig_time_s: the rig time the job used in all (s; an RL run's last, unfinished episode included).
         policy: the method's final policy, to evaluate on held-out episodes (None: not kept).
         frame_skip: ticks the policy holds each action for.
-        marks: rig times of the method's own milestones (s), e.g. G2P's "paper_stop_s".
+        marks: the method's own figures, e.g. G2P's "paper_stop_s" (rig time of the paper's stop, s) and
+            "faults" (attempts a limit tripped).
     """
 
     episodes: list[Episode]
@@ -211,15 +212,16 @@ def _g2p_run(
     learner_config: LearnerConfig | None,
     keep_searching: bool = True,
     cycle: LimitCycleConfig | None = None,
-) -> tuple[list[AttemptOutcome], float | None]:
+) -> tuple[list[AttemptOutcome], dict[str, float]]:
     """G2P on `plant`: babble, then attempts until `budget_s` of rig time.
 
     With `keep_searching` the search goes on exploiting after the paper's 15 attempts: each draw is around
     the best gait so far with the paper's reward-dependent sigma, and each attempt refines the map; else
     it stops there, as the paper's does.
 
-    Returns every attempt's outcome, and the rig time at the paper's stop (after its 15th exploitation
-    attempt; None if the budget ended first).
+    Returns every attempt's outcome, and the curve's marks: `paper_stop_s`, the rig time at the paper's
+    stop (after its 15th exploitation attempt; absent if the budget ended first), and `faults`, the
+    attempts a limit tripped.
     """
     rig = RigWithResets(plant, RIG_AS_IT_RUNS["reset_s"])
     learner = Learner(learner_config if learner_config is not None else LearnerConfig(seed=seed))
@@ -229,16 +231,19 @@ def _g2p_run(
     run = TreadmillRun(learner, search, cycle or LimitCycleConfig(), learner.config.seed)
     outcomes: list[AttemptOutcome] = []
     paper_stop_s = None
+    faults = 0
     while not run.finished and plant.time_s < budget_s:
-        outcomes.append(run.next_attempt(rig).outcome)
+        try:
+            outcomes.append(run.next_attempt(rig).outcome)
+        except RigError:
+            # A limit tripped mid-attempt (a derailed tendon, a cut-out): as for an RL episode, the attempt
+            # ends there and scores nothing, its rig time spent; the next reset puts the rig right, and the
+            # run tries the same features again (TreadmillRun's retry, as after a fault on the hardware).
+            faults += 1
         if paper_stop_s is None and run.search.n_exploitation == paper.exploitation_attempts:
             paper_stop_s = plant.time_s
-    return outcomes, paper_stop_s
-
-
-def _paper_stop(paper_stop_s: float | None) -> dict[str, float]:
-    """A G2P curve's marks: where the paper's run ended (none if the budget ended first)."""
-    return {} if paper_stop_s is None else {"paper_stop_s": paper_stop_s}
+    marks = {"faults": float(faults)}
+    return outcomes, marks if paper_stop_s is None else {**marks, "paper_stop_s": paper_stop_s}
 
 
 def _episodes(outcomes: list[AttemptOutcome]) -> list[Episode]:
@@ -272,11 +277,11 @@ def g2p_curve(
     _check_budget(budget_s)
     cfg = plant_config if plant_config is not None else MujocoLegConfig(seed=seed)
     plant = MujocoLeg(cfg)
-    outcomes, paper_stop_s = _g2p_run(seed, plant, budget_s, learner_config, cycle=cycle)
+    outcomes, marks = _g2p_run(seed, plant, budget_s, learner_config, cycle=cycle)
     rig_time_s = plant.time_s
     plant.close()
     policy = open_loop_policy(_best(outcomes).activations, RIG_AS_IT_RUNS["action_delay_ticks"])
-    return Curve(_episodes(outcomes), rig_time_s, policy, 1, _paper_stop(paper_stop_s))
+    return Curve(_episodes(outcomes), rig_time_s, policy, 1, marks)
 
 
 def random_patterns_curve(
@@ -502,7 +507,7 @@ def g2p_then_rl_curve(
     _check_budget(budget_s)
     cfg = plant_config if plant_config is not None else MujocoLegConfig(seed=seed)
     plant = MujocoLeg(cfg)
-    outcomes, paper_stop_s = _g2p_run(seed, plant, budget_s, learner_config, keep_searching=False)
+    outcomes, marks = _g2p_run(seed, plant, budget_s, learner_config, keep_searching=False)
     episodes = _episodes(outcomes)
     gait = _best(outcomes).activations
     log = EpisodeLog(TreadmillEnv(plant=plant, **RIG_AS_IT_RUNS))
@@ -516,7 +521,7 @@ def g2p_then_rl_curve(
         policy = open_loop_policy(gait, RIG_AS_IT_RUNS["action_delay_ticks"])
     rig_time_s = plant.time_s
     plant.close()
-    return Curve(episodes + log.episodes, rig_time_s, policy, 1, _paper_stop(paper_stop_s))
+    return Curve(episodes + log.episodes, rig_time_s, policy, 1, marks)
 
 
 def _check_budget(budget_s: float) -> None:

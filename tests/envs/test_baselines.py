@@ -220,3 +220,20 @@ def test_g2p_searches_on_after_the_papers_stop_and_g2p_then_rl_starts_from_its_g
     assert [e.reward_mm for e in both.episodes[:n]] == [e.reward_mm for e in g2p.episodes[:n]]
     assert len(both.episodes) == n + 2  # then PPO's episodes, on until the budget
     assert both.rig_time_s >= g2p.marks["paper_stop_s"] + 60.0
+
+
+@pytest.mark.slow
+def test_g2p_goes_on_after_an_attempt_trips_a_limit() -> None:
+    """On sim_paper, seed 3 with 60 s of babbling and a 40-tick cycle derails tendon M1 210 ticks into its
+    39th attempt (the slack payout passes 60 mm): as an RL episode would, the attempt ends there, scoring
+    nothing, the next reset puts the rig right and the run goes on to its budget."""
+    learner = LearnerConfig(seed=3)
+    learner = LearnerConfig(seed=3, babbling=type(learner.babbling)(duration_s=60.0))
+    cycle = LimitCycleConfig(samples_per_segment=4, n_cycles=40)
+    curve = g2p_curve(3, 920.0, MujocoLegConfig(seed=3, calibration="paper"), learner, cycle)
+    assert curve.marks["faults"] == 1
+    times = np.array([e.rig_time_s for e in curve.episodes])
+    assert len(times) == 40 and times[-2] < 920.0 <= times[-1]  # 38 attempts, the fault, its retry, one more
+    # Between two attempts' ends: a 1 s reset and 1600 ticks; around the fault also its 210 ticks and reset.
+    gaps = np.diff(times[1:]) * 78.0
+    assert np.sum(gaps > 1700) == 1 and np.max(gaps) == pytest.approx(78 + 1600 + 78 + 210, abs=20)
