@@ -36,7 +36,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from g2p.baselines import MARKS_S, METHODS, RL_METHODS, chance_threshold_mm, run_method
+from g2p.baselines import MARKS_S, METHODS, RL_METHODS, best_by, chance_threshold_mm, run_method
 from g2p.sim import MujocoLegConfig
 from g2p.sweep import run_sweep
 
@@ -82,12 +82,6 @@ def median_ci(
     return float(np.median(v)), float(low), float(high)
 
 
-def best_by(row: dict[str, Any], mark_s: float) -> float | None:
-    """A run's best reward (mm) among its episodes ended by rig time `mark_s` (s); None before the first."""
-    done = np.asarray(row["curve_reward_mm"])[np.asarray(row["curve_rig_time_s"]) <= mark_s]
-    return float(done.max()) if len(done) else None
-
-
 def summarize(
     rows: list[dict[str, Any]], threshold_mm: float, marks_s: tuple[float, ...] = MARKS_S
 ) -> dict[str, Any]:
@@ -106,7 +100,7 @@ def summarize(
         }
         for mark in marks_s:
             # A mark beyond the budget is not reported (the run did not get that far).
-            best = [best_by(r, mark) for r in runs]
+            best = [best_by(r["curve_rig_time_s"], r["curve_reward_mm"], mark) for r in runs]
             entry[f"best_mm_{mark / 60:g}min"] = (
                 median_ci(best, -math.inf) if mark <= budget_s * 1.001 else None
             )

@@ -30,7 +30,7 @@ from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from g2p.attempt import AttemptOutcome
 from g2p.envs import TreadmillEnv
@@ -529,6 +529,18 @@ def _check_budget(budget_s: float) -> None:
         raise ValueError(f"budget_s: must be > 0, got {budget_s}")
 
 
+def best_by(rig_time_s: ArrayLike, reward_mm: ArrayLike, mark_s: float) -> float | None:
+    """The best reward (mm) among episodes ended by rig time `mark_s` (s); None before the first ended.
+
+    Args:
+        rig_time_s: each episode's end (s), shape (E,).
+        reward_mm: each episode's reward (mm), shape (E,).
+        mark_s: the mark (s).
+    """
+    done = np.asarray(reward_mm)[np.asarray(rig_time_s) <= mark_s]
+    return float(done.max()) if len(done) else None
+
+
 def curve_summary(curve: Curve, threshold_mm: float = THRESHOLD_MM) -> dict[str, Any]:
     """The benchmark's figures of one curve.
 
@@ -543,14 +555,10 @@ def curve_summary(curve: Curve, threshold_mm: float = THRESHOLD_MM) -> dict[str,
     rewards = np.array([e.reward_mm for e in episodes])
     above = np.flatnonzero(rewards > threshold_mm)
 
-    def best_by(t_s: float) -> float | None:
-        done = rewards[times <= t_s]
-        return float(done.max()) if len(done) else None
-
     best = episodes[int(np.argmax(rewards))] if episodes else None
     return {
         "rig_time_to_threshold_s": float(times[above[0]]) if len(above) else None,
-        **{f"best_mm_{mark / 60:g}min": best_by(mark) for mark in MARKS_S},
+        **{f"best_mm_{mark / 60:g}min": best_by(times, rewards, mark) for mark in MARKS_S},
         "best_mm": best.reward_mm if best else None,
         "best_j_per_mm": best.energy_j / best.reward_mm if best and best.reward_mm > 0 else None,
         "rig_time_s": curve.rig_time_s,
