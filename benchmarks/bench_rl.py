@@ -8,9 +8,10 @@
 Each job (g2p.baselines.run_method) is one method and one seed on a fresh simulated rig; the jobs run on
 the sweep runner (g2p.sweep, Ray: local by default, a cluster with --address or RAY_ADDRESS). A run writes
 into --out: results.csv (one row per job), summary.json and a markdown table. --summarize reads the
-results.csv of several runs (methods at different budgets, rates or babbling lengths) and writes their
-joint summary.json, table.md and best_reward.png into --out; --marks-min sets the table's marks (the best
-reward by each, from every run's curve).
+results.csv of several runs (methods at different budgets, rates or babbling lengths; a seed run at
+several budgets counts once, at its longest) and writes their joint summary.json, table.md and
+best_reward.png into --out; --marks-min sets the table's marks (the best reward by each, from every
+run's curve).
 
 A variant's label is its method, then "@78Hz" for an RL method at frame skip 1, and for G2P "babbling N s",
 "cycle N ticks" and "refined on last N attempts" when they differ from the paper's 5 min, 80 ticks and
@@ -63,6 +64,20 @@ def label(row: dict[str, Any]) -> str:
     if name.startswith("g2p") and float(row.get("recent_attempts") or 0):
         name += f" refined on last {float(row['recent_attempts']):g} attempts"
     return name
+
+
+def longest_runs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per variant and seed: a seed run at several budgets counts once, at its longest.
+
+    A run is deterministic in its seed, so a longer run's curve holds the shorter one's marks, and its
+    held-out figures are those of the policy at the longest budget.
+    """
+    longest: dict[tuple[str, int], dict[str, Any]] = {}
+    for row in rows:
+        key = (label(row), int(row["seed"]))
+        if key not in longest or float(row["budget_s"]) > float(longest[key]["budget_s"]):
+            longest[key] = row
+    return list(longest.values())
 
 
 def median_ci(
@@ -252,7 +267,7 @@ def main() -> None:
     args = parser.parse_args()
     marks_s = tuple(float(m) * 60.0 for m in args.marks_min.split(","))
     if args.summarize:
-        rows = [row for d in args.summarize for row in read_rows(d / "results.csv")]
+        rows = longest_runs([row for d in args.summarize for row in read_rows(d / "results.csv")])
         thresholds = {float(r["threshold_mm"]) for r in rows}
         if len(thresholds) != 1:
             parser.error(f"the runs counted to different thresholds: {sorted(thresholds)}")
