@@ -126,9 +126,14 @@ class RigPeer(RosPeer):
             return [list(m.commanded) for m in self.received[contract.RIG_LIMITS]]
 
     def wait_for_rig(self) -> None:
-        assert self.action.wait_for_server(timeout_sec=30.0), "the rig's run_activations never appeared"
-        assert self.trajectory.wait_for_server(timeout_sec=30.0), "the rig's run_trajectory never appeared"
-        assert self.reset.wait_for_service(timeout_sec=30.0)
+        self.wait_for_servers(
+            {
+                "run_activations": self.action.server_is_ready,
+                "run_trajectory": self.trajectory.server_is_ready,
+                "reset": self.reset.service_is_ready,
+            },
+            30.0,
+        )
         wait_until(
             lambda: self.cmd.get_subscription_count() > 0, 30.0, "the rig to subscribe to activation_cmd"
         )

@@ -22,6 +22,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.task import Future
 
+from g2p_ros.contract import ServerWatch, wait_all
 from g2p_ros.spinner import BackgroundSpinner, wait_for_future
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -122,6 +123,20 @@ class RosPeer:
         """The future's result; fails the test after `timeout_s` (s)."""
         assert wait_for_future(future, timeout_s), f"no result within {timeout_s} s"
         return future.result()
+
+    def wait_for_servers(self, ready: dict[str, Callable[[], bool]], timeout_s: float) -> None:
+        """Wait until every server is available and settled (`contract.ServerWatch`); fail the test naming
+        those that are not after `timeout_s` (s).
+
+        A call made as soon as `wait_for_service` returns can lose its reply: rmw_fastrtps drops a reply whose
+        reader the server has not matched within 100 ms (ros2/rmw_fastrtps#390), and on a busy machine
+        the server discovers this peer later than the peer discovers it.
+
+        Args:
+            ready: per server name, whether it is available now (e.g. `Client.service_is_ready`).
+        """
+        missing = wait_all([ServerWatch(name, is_ready) for name, is_ready in ready.items()], timeout_s)
+        assert not missing, f"never appeared: {missing}"
 
     def close(self) -> None:
         """Shut the node and its context down: stop spinning first, then destroy what the node holds."""

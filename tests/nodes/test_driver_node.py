@@ -82,10 +82,9 @@ class LifecyclePeer(RosPeer):
             self.diagnostics.append(msg)
 
     def wait_for_driver(self) -> None:
-        assert self.change.wait_for_service(timeout_sec=30.0), (
-            "the driver's lifecycle services never appeared"
+        self.wait_for_servers(
+            {"change_state": self.change.service_is_ready, "get_state": self.get.service_is_ready}, 30.0
         )
-        assert self.get.wait_for_service(timeout_sec=10.0)
 
     def transition(self, transition_id: int, timeout_s: float = 60.0) -> bool:
         request = ChangeState.Request(transition=Transition(id=transition_id))
@@ -173,6 +172,7 @@ def test_lifecycle_serves_the_contract_and_leaves_outputs_safe(
         assert all(a == [BASELINE] * 3 for a in peer.applied[before:])
     assert at_baseline(outputs(state_dir))
 
+    peer.wait_for_servers({"reset": peer.reset.service_is_ready}, 30.0)  # served from activation on
     response = peer.wait(peer.reset.call_async(Trigger.Request()), 60.0)
     assert response.success, response.message
 

@@ -32,9 +32,11 @@ def describe(name: str) -> dict[str, tuple[int, str]]:
         listing = peer.node.create_client(ListParameters, f"{name}/list_parameters")
         describing = peer.node.create_client(DescribeParameters, f"{name}/describe_parameters")
         peer.start()
-        assert listing.wait_for_service(timeout_sec=60.0), f"{name} never appeared"
+        peer.wait_for_servers(
+            {"list_parameters": listing.service_is_ready, "describe_parameters": describing.service_is_ready},
+            60.0,
+        )
         names = list(peer.wait(listing.call_async(ListParameters.Request()), 30.0).result.names)
-        assert describing.wait_for_service(timeout_sec=10.0)
         response = peer.wait(describing.call_async(DescribeParameters.Request(names=names)), 30.0)
         return {d.name: (d.type, d.description) for d in response.descriptors}
     finally:

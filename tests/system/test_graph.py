@@ -8,7 +8,6 @@ import json
 import math
 import socket
 import subprocess
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -80,11 +79,17 @@ class LearnerClient(RosPeer):
             MotorActivation, applied, lambda m: self.applied.append(list(m.activation)), 10000
         )
         self.start()
-        for client in (self.babble, self.attempt, self.learn, self.track):
-            assert client.wait_for_server(timeout_sec=60.0), "the learner's actions never appeared"
+        self.wait_for_servers(
+            {
+                "babble": self.babble.server_is_ready,
+                "attempt": self.attempt.server_is_ready,
+                "learn": self.learn.server_is_ready,
+                "track": self.track.server_is_ready,
+            },
+            60.0,
+        )
         # The rig's ticks are volatile: see its publisher before anything plays, or miss the first ones.
         wait_until(lambda: self.node.count_publishers(applied) > 0, 60.0, f"a publisher of {applied}")
-        time.sleep(contract.DISCOVERY_SETTLE_S)  # see contract.ServerWatch
 
     def destroy_entities(self) -> None:
         for client in (self.babble, self.attempt, self.learn, self.track):
