@@ -39,6 +39,7 @@ import errno
 import fcntl
 import heapq
 import json
+import math
 import os
 import random
 import select
@@ -105,6 +106,37 @@ def open_tun_in_netns(netns_path: str, ifname: str) -> int:
 
 
 @dataclass
+class HoldStats:
+    """Count, mean, standard deviation, min and max of the hold times of forwarded packets."""
+
+    count: int = 0
+    sum_ns: int = 0
+    sum_sq_ms: float = 0.0
+    min_ns: int | None = None
+    max_ns: int | None = None
+
+    def add(self, ns: int) -> None:
+        """Add one packet's hold time (ns)."""
+        self.count += 1
+        self.sum_ns += ns
+        self.sum_sq_ms += (ns / 1e6) ** 2
+        self.min_ns = ns if self.min_ns is None else min(self.min_ns, ns)
+        self.max_ns = ns if self.max_ns is None else max(self.max_ns, ns)
+
+    def snapshot(self) -> dict[str, Any]:
+        """{count, mean, sd, min, max} in ms (None before the first packet)."""
+        n = self.count
+        mean = self.sum_ns / n / 1e6 if n else None
+        return {
+            "count": n,
+            "mean": mean,
+            "sd": math.sqrt(max(0.0, self.sum_sq_ms / n - mean**2)) if mean is not None else None,
+            "min": self.min_ns / 1e6 if self.min_ns is not None else None,
+            "max": self.max_ns / 1e6 if self.max_ns is not None else None,
+        }
+
+
+@dataclass
 class Direction:
     """Impairment settings and counters of one direction of the link."""
 
@@ -125,10 +157,8 @@ class Direction:
     dropped_overflow_packets: int = 0
     write_errors: int = 0
     reordered_packets: int = 0
-    hold_count: int = 0
-    hold_sum_ns: int = 0
-    hold_min_ns: int | None = None
-    hold_max_ns: int | None = None
+    hold: HoldStats = field(default_factory=HoldStats)  # actual: from read to write
+    drawn: HoldStats = field(default_factory=HoldStats)  # the rule's: delay + jitter as drawn
 
     def reset(self) -> None:
         """Zero the counters and the delay statistics (held packets stay held)."""
@@ -142,11 +172,9 @@ class Direction:
             "dropped_overflow_packets",
             "write_errors",
             "reordered_packets",
-            "hold_count",
-            "hold_sum_ns",
         ):
             setattr(self, name, 0)
-        self.hold_min_ns = self.hold_max_ns = None
+        self.hold, self.drawn = HoldStats(), HoldStats()
 
     def hold_ns(self) -> int:
         """The hold time for the next packet: delay + uniform jitter, at least 0 ns."""
@@ -155,18 +183,8 @@ class Direction:
             ms += self.rng.uniform(-self.jitter_ms, self.jitter_ms)
         return max(0, round(ms * 1e6))
 
-    def record_hold(self, hold: int) -> None:
-        """Add one forwarded packet's actual hold time (ns, from read to write) to the statistics."""
-        self.hold_count += 1
-        self.hold_sum_ns += hold
-        if self.hold_min_ns is None or hold < self.hold_min_ns:
-            self.hold_min_ns = hold
-        if self.hold_max_ns is None or hold > self.hold_max_ns:
-            self.hold_max_ns = hold
-
     def snapshot(self) -> dict[str, Any]:
         """Counters, settings and hold-time statistics (ms) as a JSON-ready dict."""
-        n = self.hold_count
         return {
             "delay_ms": self.delay_ms,
             "jitter_ms": self.jitter_ms,
@@ -181,12 +199,8 @@ class Direction:
             "write_errors": self.write_errors,
             "reordered_packets": self.reordered_packets,
             "held_packets": len(self.held),
-            "hold_ms": {
-                "count": n,
-                "mean": self.hold_sum_ns / n / 1e6 if n else None,
-                "min": self.hold_min_ns / 1e6 if self.hold_min_ns is not None else None,
-                "max": self.hold_max_ns / 1e6 if self.hold_max_ns is not None else None,
-            },
+            "hold_ms": self.hold.snapshot(),
+            "drawn_ms": self.drawn.snapshot(),
         }
 
 
@@ -214,7 +228,7 @@ class Forwarder:
 
     # -- packets ----------------------------------------------------------------------------------------
 
-    def _write(self, d: Direction, packet: bytes, read_ns: int) -> None:
+    def _write(self, d: Direction, packet: bytes, read_ns: int, drawn_ns: int) -> None:
         try:
             os.write(self.out_fd[d.name], packet)
         except OSError as exc:
@@ -223,7 +237,8 @@ class Forwarder:
             if exc.errno not in (errno.EIO, errno.EAGAIN, errno.ENOBUFS):
                 print(f"forwarder: write {d.name}: {exc}", file=sys.stderr)
             return
-        d.record_hold(time.monotonic_ns() - read_ns)
+        d.hold.add(time.monotonic_ns() - read_ns)
+        d.drawn.add(drawn_ns)
         d.forwarded_packets += 1
         d.forwarded_bytes += len(packet)
 
@@ -241,7 +256,7 @@ class Forwarder:
         hold = d.hold_ns()
         if hold == 0 and not d.held:
             d.last_released_seq = seq
-            self._write(d, packet, read_ns)
+            self._write(d, packet, read_ns, hold)
         elif len(d.held) >= MAX_HELD:
             d.dropped_overflow_packets += 1
         else:
@@ -261,7 +276,7 @@ class Forwarder:
         for d in self.dirs.values():
             held = d.held
             while held and held[0][0] <= now:
-                _, seq, read_ns, packet = heapq.heappop(held)
+                due_ns, seq, read_ns, packet = heapq.heappop(held)
                 if self.partitioned:
                     d.dropped_partition_packets += 1
                     d.dropped_partition_bytes += len(packet)
@@ -270,7 +285,7 @@ class Forwarder:
                     d.reordered_packets += 1
                 else:
                     d.last_released_seq = seq
-                self._write(d, packet, read_ns)
+                self._write(d, packet, read_ns, due_ns - read_ns)
 
     def _next_due(self) -> int | None:
         dues = [d.held[0][0] for d in self.dirs.values() if d.held]

@@ -479,8 +479,9 @@ class TwoHosts:
         """The forwarder's counters: ``{"partition": bool, "ws_to_rig": {...}, "rig_to_ws": {...}}``.
 
         Per direction: forwarded/dropped packets and bytes (loss, partition, overflow), write errors,
-        reordered packets, packets held now, and ``hold_ms`` {count, mean, min, max}: the hold times actually
-        applied, from reading a packet to writing it (ms).
+        reordered packets, packets held now, ``hold_ms`` {count, mean, sd, min, max}: the hold times actually
+        applied, from reading a packet to writing it (ms), and ``drawn_ms``, the same of the hold times the
+        link's rule drew (delay + jitter), which the actual ones exceed by the forwarder's scheduling.
         """
         reply = self.command({"cmd": "counters"})
         reply.pop("ok", None)
