@@ -98,8 +98,7 @@ class LifecyclePeer(RosPeer):
             return [e.goal_state.id for e in self.events]
 
     def play(self, activations: np.ndarray) -> Any:
-        watch = contract.ServerWatch("run_activations", self.action.server_is_ready)
-        assert watch.wait_until_ready(30.0), "run_activations never appeared"
+        self.wait_for_servers({"run_activations": self.action.server_is_ready}, 30.0)
         goal = RunActivations.Goal(activation=np.asarray(activations, dtype=np.float64).ravel())
         return self.wait(self.action.send_goal_async(goal), 30.0)
 
