@@ -2,7 +2,7 @@
 .PHONY: run test lint bootstrap
 
 # The ROS suites run on ROS 2 Jazzy (the Raspberry Pi's distribution) as well as on Kilted.
-ROS_SUITES := tests/interfaces tests/nodes tests/system
+ROS_SUITES := tests/ros tests/system
 
 # The main job: a full G2P learning run on the simulated rig (fast time), recorded to bags/<run-id>/
 # with its report. Extra bring-up options: make run ARGS="--set learner.learner.seed=3"

@@ -33,8 +33,8 @@ from g2p.identification.fit import FitConfig, angle_errors_rad, rmse_rad
 from g2p.identification.segments import load_recorded_run
 from g2p.identification.validation import rewards_mm
 from g2p.inverse_map import InverseMap
-from g2p.learner import LearnerConfig
-from g2p.limit_cycle import LimitCycleConfig
+from g2p.learning.learner import LearnerConfig
+from g2p.learning.limit_cycle import LimitCycleConfig
 from g2p.sim import MujocoLeg
 from g2p.sim.calibration import LegCalibration, model_values
 from g2p.sim.config import TREADMILL_CARRIAGE_HEIGHT_M, MujocoLegConfig

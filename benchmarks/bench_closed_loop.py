@@ -1,4 +1,4 @@
-"""Closed-loop G2P (g2p.closed_loop) against the paper's open loop on the MuJoCo rig, over many seeds.
+"""Closed-loop G2P (g2p.rig.closed_loop) against the paper's open loop on the MuJoCo rig, over many seeds.
 
     scripts/with-env python benchmarks/bench_closed_loop.py --seeds 15 --workers 2 --out docs/results
 
@@ -32,13 +32,13 @@ from typing import Any
 import numpy as np
 from setups import Setup, air_learner, treadmill
 
-from g2p.attempt import AttemptOutcome, run_attempt
-from g2p.closed_loop import ControlMode, FeedbackConfig
-from g2p.experiments import random_features
-from g2p.learner import LearnerConfig
+from g2p.learning.attempt import AttemptOutcome, run_attempt
+from g2p.learning.experiments import random_features
+from g2p.learning.learner import LearnerConfig
+from g2p.learning.seeds import seed_streams
 from g2p.plant import NOMINAL_TICK_HZ
-from g2p.seeds import seed_streams
-from g2p.sweep import JobFailure, ray_session, run_sweep
+from g2p.rig.closed_loop import ControlMode, FeedbackConfig
+from g2p.rl.sweep import JobFailure, ray_session, run_sweep
 
 KNEE_SCALE = 1.5
 """The distal joint's P and I gains are the proximal's times this (the follow-up's P: 10, 15)."""

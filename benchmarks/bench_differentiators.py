@@ -24,7 +24,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from g2p.kinematics import Differentiator, PreprocessConfig, Resampling, differentiate, resample, uniform_grid
+from g2p.learning.kinematics import (
+    Differentiator,
+    PreprocessConfig,
+    Resampling,
+    differentiate,
+    resample,
+    uniform_grid,
+)
 from g2p.plant import NOMINAL_TICK_HZ
 
 FloatArray = NDArray[np.float64]

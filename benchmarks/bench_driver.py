@@ -1,7 +1,7 @@
 """How well the hardware loop keeps 78 Hz and samples the motor currents at 500 Hz, on the fake devices.
 
 The hardware plant (`g2p.hardware.HardwareLeg`) runs on the monotonic clock against the physics-backed
-fake buses (`g2p.hardware.fake_rig`: the chips answer byte for byte, the MuJoCo leg moves), playing motor
+fake buses (`g2p.hardware_fake.buses`: the chips answer byte for byte, the MuJoCo leg moves), playing motor
 babbling as in the paper. Two ways to drive it:
 
     plant       the plant alone, stepped back to back (the loop's own timing);
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from g2p.hardware import HardwareLeg, HardwareLegConfig, WiringConfig, load_wiring, open_devices
-from g2p.hardware.fake_rig import fake_devices
+from g2p.hardware_fake.buses import fake_devices
 from g2p.plant import NOMINAL_TICK_HZ, FloatArray, TickSample
 
 
@@ -155,7 +155,7 @@ def run_rig_server(seconds: float, sched_fifo: int, seed: int, wiring: str = "")
     from rclpy.executors import MultiThreadedExecutor
     from rclpy.node import Node
 
-    from g2p.tick_loop import Pacing
+    from g2p.rig.tick_loop import Pacing
     from g2p_interfaces.action import RunActivations
     from g2p_ros import contract
     from g2p_ros.rig_server import RigServer

@@ -40,8 +40,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from g2p.babbling import babbling_activations
 from g2p.bags.dataset import load_run
+from g2p.learning.babbling import babbling_activations
 from g2p_interfaces.action import RunActivations
 from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
 from g2p_ros import contract

@@ -4,7 +4,8 @@ Data come from a small MuJoCo leg built from the facts in G2P_FACTS.md (two hing
 [-90, 0] deg, damping 1, frictionloss 3; links 0.5 m / 3.9 kg and 0.48 m / 3.7 kg; three fixed tendons with
 moment arms hip (-0.1, +0.1, -0.1) m and knee (+0.1, 0, -0.1) m; activations filtered with 40 ms, 300 N per
 tendon), hanging in the air, ticked at 78 Hz with the tick length drawn from N(78, 5) Hz on a 1 ms physics
-step. Babbling is 5 min of `g2p.babbling`; pairs come from `g2p.kinematics.training_pairs` with the defaults.
+step. Babbling is 5 min of `g2p.learning.babbling`; pairs come from `g2p.learning.kinematics.training_pairs`
+with the defaults.
 Attempts play 20 random in-air cycles (features in [0.2, 0.8]) of BENCH_CYCLES through the current map.
 
 Sections:
@@ -32,10 +33,16 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from g2p.babbling import babbling_activations
 from g2p.inverse_map import InverseMap, InverseMapConfig, Optimizer
-from g2p.kinematics import Differentiator, PreprocessConfig, Resampling, TrainingPairs, training_pairs
-from g2p.limit_cycle import LimitCycleConfig, attempt_kinematics
+from g2p.learning.babbling import babbling_activations
+from g2p.learning.kinematics import (
+    Differentiator,
+    PreprocessConfig,
+    Resampling,
+    TrainingPairs,
+    training_pairs,
+)
+from g2p.learning.limit_cycle import LimitCycleConfig, attempt_kinematics
 from g2p.plant import NOMINAL_TICK_HZ
 
 FloatArray = NDArray[np.float64]

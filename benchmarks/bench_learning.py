@@ -12,7 +12,7 @@ Runs, for each seed, on a fresh simulated rig (MujocoLeg) with the default confi
       babbling-only map plays the 30 test trajectories; a map fitted afresh on babbling + those attempts
       plays them again; a third map, fitted on all of it, plays them once more.
 Writes results.json, results.csv (one row per experiment x seed) and figures into --out, and prints a
-markdown table beside the paper's figures. The runs fan out on Ray (g2p.sweep): a local Ray using
+markdown table beside the paper's figures. The runs fan out on Ray (g2p.rl.sweep): a local Ray using
 --workers CPUs (default: all), or a cluster by --address HOST:6379 (or RAY_ADDRESS). A run that fails is
 left out of the figures and written to failures.json; the benchmark then exits with status 1.
 
@@ -37,12 +37,12 @@ from typing import Any
 import numpy as np
 from setups import Setup, air_learner, parse_override, treadmill
 
-from g2p.attempt import run_attempt
-from g2p.experiments import generalization, random_features, refine_one_trajectory
 from g2p.inverse_map import InverseMap
-from g2p.kinematics import recording_pairs
-from g2p.seeds import seed_streams
-from g2p.sweep import SweepResult, ray_session, run_sweep
+from g2p.learning.attempt import run_attempt
+from g2p.learning.experiments import generalization, random_features, refine_one_trajectory
+from g2p.learning.kinematics import recording_pairs
+from g2p.learning.seeds import seed_streams
+from g2p.rl.sweep import SweepResult, ray_session, run_sweep
 
 PAPER = {
     "crossed": "15/15",

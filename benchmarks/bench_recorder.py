@@ -1,7 +1,7 @@
 """Recorder throughput against the fast simulation's rate, and bag size per minute of rig time.
 
 Three measurements on this machine:
-    end to end: the installed `record` executable recording the fake rig of tests/nodes/fake_rig_publisher.py
+    end to end: the installed `record` executable recording the fake rig of tests/ros/fake_rig_publisher.py
         (a separate process publishing joint_states, treadmill, motor_power, applied_activation and /clock
         every tick, plus /diagnostics, learner events and maps) as fast as it can publish. Reports the
         publisher's tick rate, messages and MB (serialized payload) recorded per second of the publishing

@@ -4,14 +4,14 @@ Each is played on the in-process rig (`PlantRig`: the rig's tick loop with its s
 simulated rig with its limits) and measured at the ticks and at the physics sub-steps:
 
 - the joints' speeds entering their stops (median, 95th percentile, max over the entries, from the ticks'
-  joint velocities; g2p.envelope.stop_entry_speeds), and how many entries;
+  joint velocities; g2p.rig.envelope.stop_entry_speeds), and how many entries;
 - the tendons' peak tension (sub-steps) and the ticks beyond the rated tension; the share of ticks each
   tendon carried no force at all (slack); the most cable paid out into a slack tendon;
 - the motors' RMS current and copper loss, the hottest winding;
 - the belt travel, the ticks the envelope changed, and the trip (if one ended the pattern).
 
 The square wave: M0 and M2 at 1 with M1 at 0.15 for half a period, then the reverse, at 0.97 Hz (G2P's
-own cycle rate), from rest. The G2P run is `g2p.experiments.run_treadmill` with the default settings:
+own cycle rate), from rest. The G2P run is `g2p.learning.experiments.run_treadmill` with the default settings:
 its babbling (5 min), all its attempts, and its best attempt. PPO and SAC (`--rl ppo,sac`) train inside
 the envelope for `--rl-hours` of rig time, then their deterministic gaits play for 5 min without a reset.
 
@@ -33,18 +33,18 @@ import gymnasium as gym
 import numpy as np
 
 import g2p.inverse_map.training  # noqa: F401  (torch first: its import is slow and belongs to no tick)
-from g2p.baselines import rl_model
-from g2p.envelope import JOINT_STOPS_RAD, EnvelopeConfig, stop_entry_speeds
-from g2p.envs import TreadmillEnv
-from g2p.experiments import TreadmillRun
-from g2p.learner import Learner, LearnerConfig
-from g2p.limit_cycle import LimitCycleConfig
+from g2p.learning.experiments import TreadmillRun
+from g2p.learning.learner import Learner, LearnerConfig
+from g2p.learning.limit_cycle import LimitCycleConfig
+from g2p.learning.search import SearchConfig
 from g2p.plant import FloatArray, TickSample
 from g2p.rig import PlantRig, RigError
+from g2p.rig.envelope import JOINT_STOPS_RAD, EnvelopeConfig, stop_entry_speeds
+from g2p.rig.tick_loop import TickLoopConfig
+from g2p.rl.baselines import rl_model
+from g2p.rl.envs import TreadmillEnv
 from g2p.safety import BASELINE_ACTIVATION
-from g2p.search import SearchConfig
 from g2p.sim import MujocoLeg, MujocoLegConfig
-from g2p.tick_loop import TickLoopConfig
 
 
 def square_wave(seconds: float, tick_hz: float, hz: float = 0.97) -> FloatArray:
@@ -152,7 +152,7 @@ def g2p_run(seed: int, envelope: EnvelopeConfig) -> dict[str, Any]:
 def rl_gait(method: str, seed: int, hours: float, play_s: float = 300.0) -> dict[str, Any]:
     """PPO or SAC trained for `hours` of rig time inside the envelope; figures of its deterministic gait.
 
-    Trains as benchmarks/bench_rl.py does (g2p.baselines.rl_model, frame_skip 4) on g2p/Treadmill-v0 over
+    Trains as benchmarks/bench_rl.py does (g2p.rl.baselines.rl_model, frame_skip 4) on g2p/Treadmill-v0 over
     the in-process rig, whose envelope limits every action, and counts the training episodes a trip ended.
     Then plays the deterministic policy for `play_s` without a reset, as a rig would run the gait (an
     episode's reset starts the windings cold: one 20 s episode never meets the thermal budget), and

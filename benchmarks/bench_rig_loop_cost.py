@@ -1,7 +1,7 @@
 """Measure what closed loop adds to each tick of the rig's loop: the per-tick decision of run_trajectory.
 
 The rig server (g2p_ros.rig_server, both the simulator and the driver) decides each closed-loop tick's
-activation as `g2p.closed_loop.TrajectoryTracker.next_activation(previous tick's sample)` followed by the
+activation as `g2p.rig.closed_loop.TrajectoryTracker.next_activation(previous tick's sample)` followed by the
 check every activation gets (`g2p.safety.check_activation_sequence` on the row). This times exactly that,
 call by call, with nothing else running in the process: the map's numpy forward pass on one row, the
 feedback law, the delay queue. No MuJoCo, no torch, no ROS: it runs on the Pi as it is.
@@ -22,10 +22,10 @@ import time
 
 import numpy as np
 
-from g2p.closed_loop import FeedbackConfig, Trajectory, TrajectoryTracker
 from g2p.inverse_map import FORMAT_VERSION, InverseMap
-from g2p.limit_cycle import LimitCycleConfig, attempt_kinematics
+from g2p.learning.limit_cycle import LimitCycleConfig, attempt_kinematics
 from g2p.plant import NOMINAL_TICK_HZ, TickSample
+from g2p.rig.closed_loop import FeedbackConfig, Trajectory, TrajectoryTracker
 from g2p.safety import BASELINE_ACTIVATION, check_activation_sequence
 
 

@@ -5,8 +5,8 @@
     scripts/with-env python benchmarks/bench_rl.py --summarize docs/results/rl_paper/*/ \
         --out docs/results/rl_paper
 
-Each job (g2p.baselines.run_method) is one method and one seed on a fresh simulated rig; the jobs run on
-the sweep runner (g2p.sweep, Ray: local by default, a cluster with --address or RAY_ADDRESS). A run writes
+Each job (g2p.rl.baselines.run_method) is one method and one seed on a fresh simulated rig; the jobs run on
+the sweep runner (g2p.rl.sweep, Ray: local by default, a cluster with --address or RAY_ADDRESS). A run writes
 into --out: results.csv (one row per job), summary.json and a markdown table. --summarize reads the
 results.csv of several runs (methods at different budgets, rates or babbling lengths; a seed run at
 several budgets counts once, at its longest) and writes their joint summary.json, table.md and
@@ -37,9 +37,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from g2p.baselines import MARKS_S, METHODS, RL_METHODS, best_by, chance_threshold_mm, run_method
+from g2p.rl.baselines import MARKS_S, METHODS, RL_METHODS, best_by, chance_threshold_mm, run_method
+from g2p.rl.sweep import run_sweep
 from g2p.sim import MujocoLegConfig
-from g2p.sweep import run_sweep
 
 COLOURS = {
     "g2p": "tab:green",

@@ -2,8 +2,8 @@
 
     scripts/with-env python benchmarks/bench_rl_gait.py --calibration paper --seed 0
 
-Runs each method as bench_rl does (g2p.baselines.method_curve, --budget-min of rig time), rolls its
-final policy out for one held-out 20-cycle episode (as g2p.baselines.evaluate does), and describes the
+Runs each method as bench_rl does (g2p.rl.baselines.method_curve, --budget-min of rig time), rolls its
+final policy out for one held-out 20-cycle episode (as g2p.rl.baselines.evaluate does), and describes the
 gait: belt travel (mm), energy (J) and energy per mm, the joints' ranges (rad), the dominant frequency of
 the hip angle (Hz), the mean applied activations, and the share of ticks at which each motor is at its
 baseline (0.15) or saturated (>= 0.98). Prints one JSON line per method.
@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from g2p.baselines import HELD_OUT_SEED, RIG_AS_IT_RUNS, Curve, method_curve
-from g2p.envs import TreadmillEnv
+from g2p.rl.baselines import HELD_OUT_SEED, RIG_AS_IT_RUNS, Curve, method_curve
+from g2p.rl.envs import TreadmillEnv
 from g2p.safety import BASELINE_ACTIVATION
 from g2p.sim import MujocoLegConfig
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from g2p.bags.reader import BagReader
 from g2p.bags.ticks import header_stamp_ns
-from g2p.urdf import packaged_leg_description
+from g2p.description.urdf import packaged_leg_description
 from g2p.viewer.server import LegViewer, ViewerConfig
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,7 +1,8 @@
 """Search the simulated treadmill and foot for a rig on which G2P behaves like the paper's hardware.
 
     OMP_NUM_THREADS=1 scripts/with-env python benchmarks/search_paper_rig.py --trials 16 --seeds-per-trial 5 \
-        --seed 0 --out docs/results/paper_rig --out-calibration src/g2p/models/calibrations/paper.yaml
+        --seed 0 --out docs/results/paper_rig \
+        --out-calibration src/g2p/description/models/calibrations/paper.yaml
 
 The packaged calibration `paper` came from four runs (one core; each interrupted run's trials.json was moved
 into docs/results/paper_rig/search1/ before the next):
@@ -51,7 +52,7 @@ import numpy as np
 import optuna
 from setups import Setup, treadmill
 
-from g2p.search import SearchConfig
+from g2p.learning.search import SearchConfig
 from g2p.sim.calibration import PARAMETERS, LegCalibration
 
 # The paper's treadmill figures (Marjaninejad et al. 2019, Fig 4).
@@ -236,7 +237,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the TPE sampler")
     parser.add_argument("--out", type=Path, default=Path("docs/results/paper_rig"))
     parser.add_argument(
-        "--out-calibration", type=Path, default=Path("src/g2p/models/calibrations/paper.yaml")
+        "--out-calibration", type=Path, default=Path("src/g2p/description/models/calibrations/paper.yaml")
     )
     parser.add_argument("--narrow", action="store_true", help="search NARROW_SPACE instead of SEARCH_SPACE")
     parser.add_argument(

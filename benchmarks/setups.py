@@ -12,14 +12,14 @@ import time
 from dataclasses import dataclass, replace
 from typing import Any
 
-from g2p.envelope import EnvelopeConfig
-from g2p.experiments import run_treadmill
-from g2p.learner import Learner, LearnerConfig
-from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig
+from g2p.learning.experiments import run_treadmill
+from g2p.learning.learner import Learner, LearnerConfig
+from g2p.learning.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig
+from g2p.learning.search import SearchConfig
 from g2p.rig import PlantRig
-from g2p.search import SearchConfig
+from g2p.rig.envelope import EnvelopeConfig
+from g2p.rig.tick_loop import TickLoopConfig
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, MujocoLeg, MujocoLegConfig
-from g2p.tick_loop import TickLoopConfig
 
 
 @dataclass(frozen=True)

@@ -14,11 +14,11 @@ import json
 import time
 
 import g2p.inverse_map.training  # noqa: F401  (torch: imported by the first fit otherwise, inside the call)
-from g2p.experiments import run_treadmill
-from g2p.learner import Learner, LearnerConfig
-from g2p.limit_cycle import LimitCycleConfig
+from g2p.learning.experiments import run_treadmill
+from g2p.learning.learner import Learner, LearnerConfig
+from g2p.learning.limit_cycle import LimitCycleConfig
+from g2p.learning.search import SearchConfig
 from g2p.rig import PlantRig
-from g2p.search import SearchConfig
 from g2p.sim import MujocoLeg, MujocoLegConfig
 
 

@@ -91,7 +91,7 @@ def pytest_sessionfinish(session: pytest.Session) -> None:
 def _stop_leftover_processes() -> Iterator[None]:
     """After each test, stop the node processes it left running (only tests that started any)."""
     yield
-    rosproc = sys.modules.get("tests.nodes.rosproc")
+    rosproc = sys.modules.get("tests.ros.rosproc")
     if rosproc is not None:
         rosproc.stop_leftovers()
 

@@ -10,11 +10,11 @@ Lifecycle (lifecycle_msgs services under /leg/driver/):
 A persistent hardware fault, an exception in the tick loop or a stalled loop drive the node through
 deactivate into error processing (outputs baseline, then off), ending unconfigured. Ctrl-C and SIGTERM
 stop the tick loop and leave the outputs off before the process exits. With `fake_devices:=true` the same
-node runs on the physics-backed fake buses of `g2p.hardware.fake_rig` (no Raspberry Pi needed).
+node runs on the physics-backed fake buses of `g2p.hardware_fake.buses` (no Raspberry Pi needed).
 
 At construction, whatever the lifecycle state, the node publishes the leg's URDF, latched, on
-`robot_description`: the file `description_file` (default the packaged g2p/models/leg.urdf), or with fake
-devices the URDF of the MuJoCo model behind the fake buses.
+`robot_description`: the file `description_file` (default the packaged g2p/description/models/leg.urdf),
+or with fake devices the URDF of the MuJoCo model behind the fake buses.
 """
 
 from __future__ import annotations
@@ -33,11 +33,11 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from std_msgs.msg import Header
 
-from g2p.config import ConfigError, require, require_positive
+from g2p.description.urdf import UrdfError, leg_urdf, packaged_urdf_path, read_leg_urdf
 from g2p.hardware import HardwareError, HardwareLeg, HardwareLegConfig, load_wiring, open_devices
 from g2p.rig import DEFAULT_NAMESPACE
-from g2p.tick_loop import Pacing
-from g2p.urdf import UrdfError, leg_urdf, packaged_urdf_path, read_leg_urdf
+from g2p.rig.tick_loop import Pacing
+from g2p.validation import ConfigError, require, require_positive
 from g2p_ros import contract
 from g2p_ros.params import config_as_dict, declare_config, publish_config, report_invalid_parameter
 from g2p_ros.rig_server import RigServer, RigServerConfig
@@ -46,7 +46,7 @@ from g2p_ros.signals import init_with_stop_event, spin_until_stopped
 from g2p_ros.spinner import MultiThreadedExecutor
 
 if TYPE_CHECKING:
-    from g2p.hardware.fake_rig import FakeRig, FakeRigConfig
+    from g2p.hardware_fake.buses import FakeRig, FakeRigConfig
 
 PACKAGE = "g2p_driver"
 
@@ -58,8 +58,8 @@ class DriverConfig:
     Attributes:
         wiring: path of the rig's wiring description (YAML); "" uses the installed config/wiring.yaml.
         description_file: the leg's URDF, published as robot_description, as it is (it must describe the
-            leg as g2p.urdf writes it); "" uses the packaged g2p/models/leg.urdf. Unused with fake_devices:
-            the fake rig's MuJoCo model is described.
+            leg as g2p.description.urdf writes it); "" uses the packaged g2p/description/models/leg.urdf.
+            Unused with fake_devices: the fake rig's MuJoCo model is described.
         fake_devices: run on the physics-backed fake buses (MuJoCo leg) instead of the Pi's devices;
             `fake.*` parameters set them up.
         autostart: configure and activate at start-up, for a graph without a lifecycle manager.
@@ -123,7 +123,7 @@ class DriverNode(LifecycleNode):
         # The fake rig and its MuJoCo leg are imported only when asked for: the Pi needs neither.
         self.fake_config: FakeRigConfig | None = None
         if self.config.fake_devices:
-            from g2p.hardware.fake_rig import FakeRigConfig
+            from g2p.hardware_fake.buses import FakeRigConfig
 
             self.fake_config = declare_config(self, FakeRigConfig, "fake.")
         require(
@@ -155,7 +155,7 @@ class DriverNode(LifecycleNode):
             ConfigError: description_file cannot be read or does not describe the leg.
         """
         if self.fake_config is not None:
-            from g2p.hardware.fake_rig import fake_leg_config
+            from g2p.hardware_fake.buses import fake_leg_config
             from g2p.sim.model_description import config_description
 
             return leg_urdf(config_description(fake_leg_config(self.fake_config)))
@@ -173,7 +173,7 @@ class DriverNode(LifecycleNode):
         try:
             wiring = load_wiring(path)
             if self.fake_config is not None:
-                from g2p.hardware.fake_rig import fake_devices
+                from g2p.hardware_fake.buses import fake_devices
 
                 self.fake, devices = fake_devices(wiring, self.fake_config)
             else:

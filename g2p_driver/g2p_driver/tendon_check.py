@@ -4,7 +4,7 @@ The rig (the driver, active; or the simulator) must be serving the rig contract 
 pulled alone at a low activation from rest (run_activations, after a reset) and the joint rotations are
 compared with Fig 1d; the report names what a failure points at (a reversed encoder, swapped motor
 channels). Exit code 0 when every tendon is right, 1 when not, 2 when the rig could not be driven.
-Parameters: levels, hold_s, threshold_deg (g2p.hardware.tendon_check.TendonCheckConfig).
+Parameters: levels, hold_s, threshold_deg (g2p.rig.tendon_check.TendonCheckConfig).
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ import sys
 import rclpy
 from rclpy.node import Node
 
-from g2p.config import ConfigError
-from g2p.hardware.tendon_check import TendonCheckConfig, check_tendons
 from g2p.rig import DEFAULT_NAMESPACE, RigError
+from g2p.rig.tendon_check import TendonCheckConfig, check_tendons
+from g2p.validation import ConfigError
 from g2p_ros.params import declare_config, report_invalid_parameter
 from g2p_ros.rig_client import RigClient
 from g2p_ros.spinner import BackgroundSpinner, MultiThreadedExecutor

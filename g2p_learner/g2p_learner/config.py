@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
-from g2p.config import require, require_positive
-from g2p.learner import LearnerConfig
-from g2p.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig
-from g2p.search import SearchConfig
+from g2p.learning.learner import LearnerConfig
+from g2p.learning.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig
+from g2p.learning.search import SearchConfig
+from g2p.validation import require, require_positive
 
 
 @dataclass(frozen=True)

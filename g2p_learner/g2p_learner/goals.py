@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from g2p.learner import Learner
-from g2p.limit_cycle import LimitCycleConfig, check_features
+from g2p.learning.learner import Learner
+from g2p.learning.limit_cycle import LimitCycleConfig, check_features
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 
 

@@ -5,7 +5,7 @@ feedback arrives and a summary at the end. `--serve` only hosts the actions (for
 
     ros2 run g2p_learner learn [--serve] [--dataset-bag DIR] [--ros-args -p search.threshold_mm:=64.0 ...]
     ros2 run g2p_learner learn --resume bags/<run>    # continue a run after its last completed attempt
-    ros2 run g2p_learner learn --control closed       # every attempt in closed loop (g2p.closed_loop)
+    ros2 run g2p_learner learn --control closed       # every attempt in closed loop (g2p.rig.closed_loop)
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ from rclpy.action import ActionClient
 from rclpy.parameter import Parameter
 from rclpy.utilities import remove_ros_args
 
-from g2p.closed_loop import ControlMode
-from g2p.config import ConfigError
+from g2p.rig.closed_loop import ControlMode
+from g2p.validation import ConfigError
 from g2p_interfaces.action import Learn
 from g2p_learner.learner_node import LearnerNode
 from g2p_ros.contract import ServerWatch, action_name, wait_all

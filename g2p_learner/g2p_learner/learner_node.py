@@ -2,8 +2,8 @@
 
 It drives whatever rig serves `run_activations`, `run_trajectory` (closed loop) and `reset` in its
 namespace (simulator or hardware, chosen by remapping), publishes every event and every inverse map for
-the recorder, and keeps the algorithm in the core library (g2p.learner, g2p.experiments); its session
-(g2p_learner.session) plays it on the rig, the node validates goals and converts messages.
+the recorder, and keeps the algorithm in the core library (g2p.learning.learner, g2p.learning.experiments);
+its session (g2p_learner.session) plays it on the rig, the node validates goals and converts messages.
 """
 
 from __future__ import annotations
@@ -23,13 +23,13 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from g2p import run_events
-from g2p.experiments import AttemptReport, TrackingReport, TrajectoryRefinement, treadmill_result
 from g2p.inverse_map import FitCancelled
-from g2p.learner import LearnerConfig
-from g2p.limit_cycle import LimitCycleConfig
+from g2p.learning.experiments import AttemptReport, TrackingReport, TrajectoryRefinement, treadmill_result
+from g2p.learning.learner import LearnerConfig
+from g2p.learning.limit_cycle import LimitCycleConfig
+from g2p.learning.run_events import Event
+from g2p.learning.search import SearchConfig
 from g2p.rig import DEFAULT_NAMESPACE, RetryingRig, RigCancelled, RigError, RigUnreachable
-from g2p.run_events import Event
-from g2p.search import SearchConfig
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_learner import goals
 from g2p_learner.config import LearnerNodeConfig

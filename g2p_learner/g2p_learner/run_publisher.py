@@ -1,4 +1,4 @@
-"""The learner's record of a run: its events (g2p.run_events) and every inverse map, for the recorder."""
+"""The learner's record of a run: its events (g2p.learning.run_events) and every inverse map."""
 
 from __future__ import annotations
 
@@ -12,12 +12,12 @@ from rclpy.node import Node
 from std_msgs.msg import Header
 
 from g2p import run_events
-from g2p.attempt import AttemptOutcome
 from g2p.inverse_map import FitReport
-from g2p.learner import Learner
-from g2p.limit_cycle import LimitCycleConfig, cycle_kinematics
+from g2p.learning.attempt import AttemptOutcome
+from g2p.learning.learner import Learner
+from g2p.learning.limit_cycle import LimitCycleConfig, cycle_kinematics
+from g2p.learning.run_events import Event
 from g2p.plant import Recording
-from g2p.run_events import Event
 from g2p_interfaces.msg import InverseMapWeights, LearnerEvent
 from g2p_ros.contract import EVENT_QOS, LEARNER_EVENTS, LEARNER_INVERSE_MAP, MAP_QOS
 from g2p_ros.convert import inverse_map_weights_msg

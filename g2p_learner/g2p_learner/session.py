@@ -1,8 +1,9 @@
 """The learner's work on its rig, recorded: babbling, attempts, runs (new or resumed) and experiments.
 
-The algorithm is the core's (g2p.learner, g2p.experiments); a session plays it on the node's rig and
-announces every step on the run's record (RunPublisher), so that the bag bounds each sequence the learner
-played and a run can be continued from its last checkpoint. The node converts goals and results.
+The algorithm is the core's (g2p.learning.learner, g2p.learning.experiments); a session plays it on the
+node's rig and announces every step on the run's record (RunPublisher), so that the bag bounds each
+sequence the learner played and a run can be continued from its last checkpoint.
+The node converts goals and results.
 """
 
 from __future__ import annotations
@@ -17,18 +18,24 @@ from typing import Any
 import numpy as np
 
 from g2p import run_events
-from g2p.attempt import AttemptOutcome
 from g2p.bags.runs import new_run_id
-from g2p.checkpoint import capture
-from g2p.experiments import Experiment, Generalization, TrajectoryRefinement, TreadmillRun, random_features
 from g2p.inverse_map import FitReport
-from g2p.learner import Learner
-from g2p.limit_cycle import LimitCycleConfig
+from g2p.learning.attempt import AttemptOutcome
+from g2p.learning.checkpoint import capture
+from g2p.learning.experiments import (
+    Experiment,
+    Generalization,
+    TrajectoryRefinement,
+    TreadmillRun,
+    random_features,
+)
+from g2p.learning.learner import Learner
+from g2p.learning.limit_cycle import LimitCycleConfig
+from g2p.learning.run_events import Event
+from g2p.learning.search import SearchConfig
+from g2p.learning.seeds import seed_streams
 from g2p.plant import Recording
 from g2p.rig import ProgressCallback, RetryingRig
-from g2p.run_events import Event
-from g2p.search import SearchConfig
-from g2p.seeds import seed_streams
 from g2p_learner.config import LearnerNodeConfig
 from g2p_learner.run_publisher import RunPublisher
 from g2p_ros.params import config_as_dict
@@ -157,7 +164,7 @@ class LearningSession:
         return run
 
     def checkpoint(self, run: TreadmillRun) -> None:
-        """Record the run's state (g2p.checkpoint): `learn --resume` continues from the last one."""
+        """Record the run's state (g2p.learning.checkpoint): `learn --resume` continues from the last one."""
         checkpoint = capture(run)
         self.record.event(
             Event.CHECKPOINT,

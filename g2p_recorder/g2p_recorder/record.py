@@ -35,7 +35,7 @@ from g2p.bags import BagError, InterfaceError, InterfaceLibrary, TopicSpec, Type
 from g2p.bags.config import RecorderConfig
 from g2p.bags.qos import EndpointQos, Qos, make_qos, recording_qos
 from g2p.bags.writer import create_run_bag
-from g2p.config import ConfigError
+from g2p.validation import ConfigError
 from g2p_ros.params import config_as_dict, declare_config, publish_config
 from g2p_ros.signals import init_with_stop_event, spin_until_stopped
 

@@ -25,7 +25,7 @@ from rosgraph_msgs.msg import Clock
 
 from g2p.bags import BagError, BagReader
 from g2p.bags.replay_plan import ReplayOptions, ReplayTopic, Timeline, parse_remap, plan_topics
-from g2p.config import ConfigError
+from g2p.validation import ConfigError
 from g2p_recorder.record import message_class, qos_profile
 from g2p_ros import contract
 from g2p_ros.signals import init_with_stop_event

@@ -16,7 +16,8 @@ ACTIVATION_CMD = "activation_cmd"
 RUN_ACTIVATIONS = "run_activations"
 RUN_TRAJECTORY = "run_trajectory"
 RESET = "reset"
-# The leg's URDF (g2p.urdf), latched: robot_state_publisher, RViz and Foxglove draw it from joint_states.
+# The leg's URDF (g2p.description.urdf), latched: robot_state_publisher, RViz and Foxglove draw it from
+# joint_states.
 ROBOT_DESCRIPTION = "robot_description"
 # What the rig publishes every tick.
 RIG_SAMPLE_TOPICS = (JOINT_STATES, TREADMILL, MOTOR_POWER, APPLIED_ACTIVATION)

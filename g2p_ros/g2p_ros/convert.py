@@ -14,9 +14,9 @@ from builtin_interfaces.msg import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
-from g2p.closed_loop import FeedbackConfig, Trajectory
 from g2p.inverse_map import N_INPUTS, InverseMap, InverseMapFormatError
 from g2p.plant import JOINT_NAMES, N_JOINTS, N_MOTORS, Recording, TickSample
+from g2p.rig.closed_loop import FeedbackConfig, Trajectory
 from g2p_interfaces.action import RunTrajectory
 from g2p_interfaces.msg import (
     InverseMapWeights,
@@ -220,8 +220,8 @@ def trajectory_from_goal(goal: RunTrajectory.Goal) -> Trajectory:
     Raises:
         ValueError: the desired kinematics are not N x 6 finite values (N >= 1), or the lead is outside
             [0, N).
-        g2p.config.ConfigError: (a ValueError) a feedback setting outside its documented range; the message
-            names the field.
+        g2p.validation.ConfigError: (a ValueError) a feedback setting outside its documented range; the
+            message names the field.
         InverseMapFormatError: (a ValueError) the map's weights (see `map_from_weights`).
     """
     n = len(goal.desired)

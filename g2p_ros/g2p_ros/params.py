@@ -22,7 +22,7 @@ from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
-from g2p.config import ConfigError
+from g2p.validation import ConfigError
 
 # The latched `~/config` topic: late subscribers (the recorder) still get the one message.
 CONFIG_QOS = QoSProfile(
@@ -54,7 +54,7 @@ def declare_config(node: Node, cls: type[T], prefix: str = "", exclude: tuple[st
         exclude: fields left at their defaults and not declared (set by the node from other parameters).
 
     Raises:
-        g2p.config.ConfigError: a value is invalid or of the wrong type (the message names the field).
+        g2p.validation.ConfigError: a value is invalid or of the wrong type (the message names the field).
     """
     docs = _attribute_docs(cls)
     values: dict[str, Any] = {}

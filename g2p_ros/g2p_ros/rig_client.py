@@ -21,9 +21,9 @@ from rclpy.node import Node
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
-from g2p.closed_loop import TrackedRecording, Trajectory
 from g2p.plant import N_JOINTS, NOMINAL_TICK_HZ, Recording
 from g2p.rig import RigBusy, RigCancelled, RigError, RigUnreachable
+from g2p.rig.closed_loop import TrackedRecording, Trajectory
 from g2p.safety import check_activation_sequence
 from g2p_interfaces.action import RunActivations, RunTrajectory
 from g2p_ros import contract
@@ -151,7 +151,7 @@ class RigClient:
         progress: Callable[[int, int], None] | None = None,
         cancel: threading.Event | None = None,
     ) -> TrackedRecording:
-        """Play a trajectory in closed loop, the map evaluated by the rig every tick (g2p.closed_loop).
+        """Play a trajectory in closed loop, the map evaluated by the rig every tick (g2p.rig.closed_loop).
 
         The goal is checked here as the rig checks it, so that a goal the rig would reject (which it can
         only log) raises with the reason instead.

@@ -1,6 +1,6 @@
 """The rig contract served over ROS 2 for any plant: the simulator and the hardware driver share it.
 
-The rig's logic is the core's `g2p.tick_loop.TickLoop`, in its own thread: which activation each tick
+The rig's logic is the core's `g2p.rig.tick_loop.TickLoop`, in its own thread: which activation each tick
 plays, pacing, the watchdog, one job or reset at a time. This adapter converts: goals, commands and
 resets go in, a `TickPublisher` publishes the ticks; a sequence, trajectory or reset is reported done only
 once its last tick is published. Executor callbacks only validate and hand work to the loop.
@@ -21,11 +21,11 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
-from g2p.closed_loop import TrajectoryTracker
-from g2p.config import require
 from g2p.plant import N_JOINTS, NOMINAL_TICK_HZ, Plant, Recording, TickSample
+from g2p.rig.closed_loop import TrajectoryTracker
+from g2p.rig.tick_loop import STOPPED, CommandOutcome, Job, Pacing, TickLoop, TickLoopConfig
 from g2p.safety import InvalidActivation, check_activation_sequence
-from g2p.tick_loop import STOPPED, CommandOutcome, Job, Pacing, TickLoop, TickLoopConfig
+from g2p.validation import require
 from g2p_interfaces.action import RunActivations, RunTrajectory
 from g2p_interfaces.msg import MotorActivation
 from g2p_ros import contract

@@ -7,7 +7,7 @@ from rclpy.publisher import Publisher
 from std_msgs.msg import String
 
 from g2p.description import LegDescription
-from g2p.urdf import leg_urdf
+from g2p.description.urdf import leg_urdf
 from g2p_ros.contract import DESCRIPTION_QOS, ROBOT_DESCRIPTION
 
 
@@ -16,8 +16,8 @@ def publish_robot_description(node: Node, description: LegDescription | str) -> 
 
     Args:
         node: the rig node.
-        description: the leg, written as g2p.urdf.leg_urdf does, or a URDF text as it is (checked by the
-            caller, e.g. with g2p.urdf.parse_leg_urdf).
+        description: the leg, written as g2p.description.urdf.leg_urdf does, or a URDF text as it is
+            (checked by the caller, e.g. with g2p.description.urdf.parse_leg_urdf).
 
     Returns:
         The publisher: keep it, destroying it ends the latching.

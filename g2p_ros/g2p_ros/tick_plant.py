@@ -1,6 +1,6 @@
 """`TickPlant`: the rig contract as a `g2p.plant.Plant`, one tick per `step` through `activation_cmd`.
 
-A policy written for an in-process plant (a Gymnasium environment of g2p.envs, say) drives the simulator
+A policy written for an in-process plant (a Gymnasium environment of g2p.rl.envs, say) drives the simulator
 node or the hardware driver with it, chosen by remapping or the node's namespace. Each `step` publishes one
 command stamped with the node's clock and returns the first tick the rig publishes stamped after it,
 built from that tick's four messages; its `activation` is the rig's `applied_activation` (after clamping,

@@ -1,6 +1,6 @@
 """The rig's output side: each tick of the loop published as the rig contract's four messages.
 
-A thread of its own publishes the ticks the loop hands over (g2p.tick_loop.Tick), in order, with one
+A thread of its own publishes the ticks the loop hands over (g2p.rig.tick_loop.Tick), in order, with one
 shared stamp per tick, while the loop steps the next one (MuJoCo steps without the GIL, so stepping and
 publishing overlap); it calls each tick's `then` once the tick is published, so that a sequence or reset
 is reported done only after its last tick went out. It also publishes /clock (simulators) and, once a
@@ -23,9 +23,9 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
-from g2p.envelope import EnvelopeAction
 from g2p.plant import TickSample, stamp_ns
-from g2p.tick_loop import Tick
+from g2p.rig.envelope import EnvelopeAction
+from g2p.rig.tick_loop import Tick
 from g2p_interfaces.msg import MotorActivation, MotorPower, RigLimits, Treadmill
 from g2p_ros import contract
 from g2p_ros.convert import time_from_ns

@@ -10,12 +10,12 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
-from g2p.config import ConfigError
 from g2p.rig import DEFAULT_NAMESPACE
+from g2p.rig.tick_loop import Pacing
 from g2p.sim import MujocoLeg, MujocoLegConfig
 from g2p.sim.model import ModelError
 from g2p.sim.model_description import leg_description
-from g2p.tick_loop import Pacing
+from g2p.validation import ConfigError
 from g2p_ros.params import config_as_dict, declare_config, publish_config, report_invalid_parameter
 from g2p_ros.rig_server import RigServer, RigServerConfig
 from g2p_ros.robot_description import publish_robot_description

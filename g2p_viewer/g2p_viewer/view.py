@@ -32,9 +32,9 @@ from std_msgs.msg import String
 from g2p.bags.errors import BagError
 from g2p.bags.events import run_event
 from g2p.bags.reader import BagReader
-from g2p.config import ConfigError
+from g2p.description.urdf import packaged_leg_description, parse_leg_urdf
 from g2p.rig import DEFAULT_NAMESPACE
-from g2p.urdf import packaged_leg_description, parse_leg_urdf
+from g2p.validation import ConfigError
 from g2p.viewer.replay import replay_bag, replay_message_bound
 from g2p.viewer.server import LegViewer, ViewerConfig
 from g2p_interfaces.msg import LearnerEvent, Treadmill

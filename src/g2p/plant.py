@@ -10,10 +10,13 @@ Conventions (the rig contract, see g2p_interfaces):
     motors: index 0, 1, 2 = M0, M1, M2; activations dimensionless in [0, 1].
     belt: displacement in mm, cumulative since the plant was created, positive when the foot pushes the
         belt backward (forward locomotion).
+
+Also the motors' first-order thermal model, which the simulated windings and the rig's envelope share.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from typing import Protocol, runtime_checkable
@@ -50,7 +53,7 @@ def stamp_ns(t_s: float) -> int:
 def on_stamp_grid(t_s: float) -> float:
     """`t_s` in whole nanoseconds, as a ROS stamp carries it, back in seconds (s).
 
-    Every rig reports its ticks' times so (g2p.tick_loop): in-process and over ROS, a learner gets the
+    Every rig reports its ticks' times so (g2p.rig.tick_loop): in-process and over ROS, a learner gets the
     same floats.
     """
     return stamp_ns(t_s) * 1e-9
@@ -216,6 +219,32 @@ def run_sequence(plant: Plant, activations: FloatArray) -> Recording:
     return Recording.from_samples([plant.step(row) for row in seq])
 
 
+def first_order_temperature(
+    temperature_c: FloatArray,
+    heat_w: FloatArray,
+    dt_s: float,
+    thermal_resistance_k_per_w: float,
+    time_constant_s: float,
+    ambient_c: float,
+) -> FloatArray:
+    """Temperatures after `dt_s` of constant heat: the exact solution of a first-order thermal model.
+
+    C dT/dt = P - (T - T_ambient) / R_th with C = tau / R_th: T relaxes toward T_ambient + P R_th with
+    time constant tau.
+
+    Args:
+        temperature_c: the temperatures now, any shape (deg C).
+        heat_w: the heat put in over the interval, same shape (W).
+        dt_s: the interval (s).
+        thermal_resistance_k_per_w: R_th to ambient (K/W).
+        time_constant_s: tau (s).
+        ambient_c: the ambient temperature (deg C).
+    """
+    target = ambient_c + heat_w * thermal_resistance_k_per_w
+    result: FloatArray = target + (temperature_c - target) * math.exp(-dt_s / time_constant_s)
+    return result
+
+
 __all__ = [
     "BASELINE_ACTIVATION",
     "JOINT_NAMES",
@@ -227,6 +256,7 @@ __all__ = [
     "Recording",
     "TickSample",
     "concatenate",
+    "first_order_temperature",
     "hold",
     "on_stamp_grid",
     "run_sequence",

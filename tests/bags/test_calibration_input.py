@@ -8,11 +8,11 @@ from pathlib import Path
 
 import pytest
 
+from g2p.description.urdf import leg_urdf
 from g2p.identification import CalibrationInputError, load_recorded_run
 from g2p.identification.calibrate import main as calibrate_main
 from g2p.sim import MujocoLeg
 from g2p.sim.model_description import leg_description
-from g2p.urdf import leg_urdf
 from tests.bags.bagdata import TICK_NS, Messages, SyntheticRun, TickPlan, write_plan
 
 

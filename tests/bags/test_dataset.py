@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from g2p.bags import BagReadError, load_run, load_training_data
+from g2p.description.urdf import leg_urdf, packaged_leg_description
 from g2p.plant import Recording
-from g2p.urdf import leg_urdf, packaged_leg_description
 from tests.bags.bagdata import TICK_NS, Messages, SyntheticRun, TickPlan, tick_values, write_plan
 
 

@@ -28,7 +28,7 @@ from g2p.bags.report import FIGURES, NO_ANIMATIONS, AnimationOptions
 from g2p.bags.report import main as report_main
 from g2p.bags.summary import best_so_far, find_joint_limits, find_threshold, near_limit_fraction
 from g2p.description import LegDescription
-from g2p.urdf import leg_urdf, packaged_leg_description
+from g2p.description.urdf import leg_urdf, packaged_leg_description
 from tests.bags.bagdata import Messages, SyntheticRun
 from tests.commands import console_script
 

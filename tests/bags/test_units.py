@@ -15,7 +15,7 @@ from g2p.bags.qos import INFINITE, EndpointQos, duration_qos_time, make_qos, rec
 from g2p.bags.replay_plan import ReplayOptions, Timeline, parse_remap, plan_topics
 from g2p.bags.runs import is_run_id, new_run_id
 from g2p.bags.selection import TopicSelection, is_hidden
-from g2p.config import ConfigError
+from g2p.validation import ConfigError
 from tests.bags.bagdata import CLOCK_QOS, INFINITE_NS, LATCHED_QOS, SAMPLE_QOS
 
 UNKNOWN_HISTORY = make_qos(

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from g2p.hardware import HardwareLeg, HardwareLegConfig, SimulatedClock, WiringConfig
-from g2p.hardware.fake_rig import FakeRig, FakeRigConfig, fake_devices
+from g2p.hardware_fake.buses import FakeRig, FakeRigConfig, fake_devices
 
 # The watchdog thread reads the clock; with a simulated clock, time only moves inside ticks, so it
 # would never trip: leave it off and test it on the monotonic clock.

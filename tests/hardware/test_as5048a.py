@@ -9,7 +9,7 @@ import pytest
 from g2p.hardware import as5048a as enc
 from g2p.hardware.as5048a import AS5048A, EncoderModel
 from g2p.hardware.errors import EncoderErrorFlag, EncoderParityError
-from g2p.hardware.fake_chips import FakeAS5048A, FaultKind
+from g2p.hardware_fake.chips import FakeAS5048A, FaultKind
 from tests.hardware.fake_legs import RecordingSpi
 
 

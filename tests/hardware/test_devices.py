@@ -11,9 +11,9 @@ from typing import Any
 import pytest
 
 from g2p.hardware import DeviceError, WiringConfig, build_devices, open_devices
-from g2p.hardware.fake_chips import FaultKind
-from g2p.hardware.fake_rig import FakeRig, FakeRigConfig
 from g2p.hardware.wiring import MotorEnableConfig
+from g2p.hardware_fake.buses import FakeRig, FakeRigConfig
+from g2p.hardware_fake.chips import FaultKind
 
 WIRING = WiringConfig()
 

@@ -6,8 +6,8 @@ import pytest
 
 from g2p.hardware import ina219 as ina
 from g2p.hardware.errors import DeviceError
-from g2p.hardware.fake_chips import FakeINA219, FakeSMBus
 from g2p.hardware.ina219 import INA219, settings_for
+from g2p.hardware_fake.chips import FakeINA219, FakeSMBus
 from tests.hardware.fake_legs import RecordingChip
 
 

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from g2p.hardware import HardwareFault, HardwareLeg, HardwareLegConfig, MonotonicClock, WiringConfig
-from g2p.hardware.fake_chips import FaultKind
-from g2p.hardware.fake_rig import FakeRigConfig, fake_devices
 from g2p.hardware.leg import dither_activation
+from g2p.hardware_fake.buses import FakeRigConfig, fake_devices
+from g2p.hardware_fake.chips import FaultKind
 from g2p.plant import hold
 from g2p.sim import TREADMILL_CARRIAGE_HEIGHT_M
 from tests.hardware.fake_legs import FAST, fake_leg
@@ -243,7 +243,7 @@ def test_belt_counter_reads_the_treadmill() -> None:
 
 
 def test_invalid_configs_name_the_field() -> None:
-    from g2p.config import ConfigError
+    from g2p.validation import ConfigError
 
     for kwargs, field in [
         ({"tick_hz": 0.0}, "tick_hz"),

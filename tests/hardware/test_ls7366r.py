@@ -7,8 +7,8 @@ import math
 import pytest
 
 from g2p.hardware.errors import DeviceError
-from g2p.hardware.fake_chips import FakeLS7366R, FloatingSpi
 from g2p.hardware.ls7366r import LS7366R, BeltOdometer, to_signed32
+from g2p.hardware_fake.chips import FakeLS7366R, FloatingSpi
 from tests.hardware.fake_legs import RecordingSpi
 
 

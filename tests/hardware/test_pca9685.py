@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from g2p.hardware import pca9685 as pca
-from g2p.hardware.fake_chips import FakePCA9685, FakeSMBus
 from g2p.hardware.pca9685 import PCA9685
+from g2p.hardware_fake.chips import FakePCA9685, FakeSMBus
 from tests.hardware.fake_legs import RecordingChip
 
 

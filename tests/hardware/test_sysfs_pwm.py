@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from g2p.hardware.errors import DeviceError
-from g2p.hardware.fake_chips import FakePwmSysfs
 from g2p.hardware.sysfs_pwm import SysfsPwmChannel, SysfsPwmGroup
+from g2p.hardware_fake.chips import FakePwmSysfs
 
 
 @pytest.fixture

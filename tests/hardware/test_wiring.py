@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from g2p.config import ConfigError
 from g2p.hardware import PwmBackend, WiringConfig, load_wiring, wiring_from_dict
 from g2p.hardware.as5048a import EncoderModel
+from g2p.validation import ConfigError
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "g2p_driver" / "config" / "wiring.yaml"
 

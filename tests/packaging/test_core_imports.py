@@ -69,3 +69,53 @@ def test_no_import_cycle_in_the_core() -> None:
     g = graph()
     assert "g2p.inverse_map.config" in g["g2p.inverse_map.training"]  # the graph sees imports
     assert find_cycle(g) is None, " -> ".join(find_cycle(g) or [])
+
+
+# The core's top level: its layers as subpackages, and the few modules every layer uses.
+TOP_LEVEL_MODULES = {"g2p.plant", "g2p.safety", "g2p.validation", "g2p.files"}
+
+
+def layer_of(module: str) -> str:
+    """The top-level module or subpackage `module` belongs to (g2p.rig.envelope -> g2p.rig)."""
+    return ".".join(module.split(".")[:2])
+
+
+def may_import(package: str) -> set[str]:
+    """The subpackages a subpackage's docstring says it may import (its line "May import: ...")."""
+    init = SRC / package.split(".")[1] / "__init__.py"
+    doc = ast.get_docstring(ast.parse(init.read_text())) or ""
+    lines = [line for line in doc.splitlines() if line.startswith("May import:")]
+    assert len(lines) == 1, f"{init}: the docstring needs one line 'May import: ...'"
+    return {word.strip(" .,") for word in lines[0].split() if word.startswith("g2p.")}
+
+
+def test_the_top_level_holds_subpackages_and_the_shared_modules() -> None:
+    modules = {f"g2p.{p.stem}" for p in SRC.glob("*.py") if p.name != "__init__.py"}
+    assert modules == TOP_LEVEL_MODULES
+
+
+def test_each_layer_imports_only_what_its_docstring_allows() -> None:
+    g = graph()
+    packages = {f"g2p.{p.parent.name}" for p in SRC.glob("*/__init__.py")}
+    assert {"g2p.rig", "g2p.learning", "g2p.hardware", "g2p.sim"} <= packages
+    allowed = {p: may_import(p) | {p} | TOP_LEVEL_MODULES for p in packages}
+    for p, rule in allowed.items():
+        assert rule - TOP_LEVEL_MODULES - {p} <= packages, f"{p} names a package that does not exist"
+    # The shared modules import only each other.
+    allowed |= {m: TOP_LEVEL_MODULES for m in TOP_LEVEL_MODULES}
+    broken = [
+        f"{module} imports {dep}"
+        for module, deps in g.items()
+        if module != "g2p"
+        for dep in deps
+        if layer_of(dep) not in allowed[layer_of(module)]
+    ]
+    assert not broken, "\n".join(broken)
+
+
+def test_the_rule_catches_a_forbidden_import() -> None:
+    assert "g2p.rig" not in may_import("g2p.hardware")
+    assert "g2p.sim" not in may_import("g2p.hardware") and "g2p.hardware_fake" not in may_import(
+        "g2p.hardware"
+    )
+    assert layer_of("g2p.rig.envelope") == "g2p.rig" and layer_of("g2p.plant") == "g2p.plant"

@@ -9,7 +9,6 @@ import mujoco
 import numpy as np
 import pytest
 
-from g2p.config import ConfigError
 from g2p.plant import Recording
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, MujocoLeg, MujocoLegConfig
 from g2p.sim.calibration import (
@@ -20,6 +19,7 @@ from g2p.sim.calibration import (
     packaged_calibrations,
 )
 from g2p.sim.sensors import encoder_step_rad
+from g2p.validation import ConfigError
 
 AIR = MujocoLegConfig(carriage_height_m=AIR_CARRIAGE_HEIGHT_M)
 

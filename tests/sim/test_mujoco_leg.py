@@ -10,8 +10,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from g2p.babbling import babbling_activations
-from g2p.config import ConfigError
+from g2p.learning.babbling import babbling_activations
 from g2p.plant import NOMINAL_TICK_HZ, Plant, Recording, TickSample, hold, run_sequence
 from g2p.safety import BASELINE_ACTIVATION
 from g2p.sim import (
@@ -26,6 +25,7 @@ from g2p.sim import (
     packaged_model_path,
 )
 from g2p.sim.calibration import LegCalibration
+from g2p.validation import ConfigError
 
 TICK = 1.0 / NOMINAL_TICK_HZ
 JITTER = MujocoLegConfig().tick_jitter_s
@@ -460,7 +460,7 @@ def test_workspace_loops_stay_in_range_and_run_in_the_stepping_direction(air_pla
 
 
 def test_stepping_radius_runs_sin_cos_spoke_cycles_in_the_stepping_direction() -> None:
-    """g2p.limit_cycle puts spoke k at centre + f * radius * (sin theta_k, cos theta_k), theta_k rising."""
+    """The limit cycle puts spoke k at centre + f radius (sin theta_k, cos theta_k), theta_k rising."""
     theta = np.linspace(0, 2 * np.pi, 10, endpoint=False)
     unit = np.stack([np.sin(theta), np.cos(theta)], axis=1)
     centre, radius = LIMIT_CYCLE_WORKSPACE.centre_rad, LIMIT_CYCLE_WORKSPACE.stepping_radius_rad

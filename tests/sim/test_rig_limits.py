@@ -8,8 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from g2p.envelope import JOINT_STOPS_RAD, WindingRating
 from g2p.plant import hold
+from g2p.rig.envelope import JOINT_STOPS_RAD, WindingRating
 from g2p.sim import MujocoLeg
 from g2p.sim.limits import COOLDOWN_HYSTERESIS_K, available_current_a
 
@@ -107,7 +107,7 @@ def test_a_spool_paying_out_into_its_slack_tendon_derails_it(treadmill_plant: Mu
 
 
 def test_babbling_trips_no_limit(treadmill_plant: MujocoLeg) -> None:
-    from g2p.babbling import babbling_activations
+    from g2p.learning.babbling import babbling_activations
 
     plant = treadmill_plant
     for row in babbling_activations(np.random.default_rng(3), n_samples=round(60 * plant.tick_hz)):

@@ -27,7 +27,7 @@ from g2p.safety import BASELINE_ACTIVATION
 from g2p_bringup.dds import one_host_environment
 from g2p_bringup.graph import load_graph
 from g2p_ros import contract
-from tests.nodes.rosproc import executable
+from tests.ros.rosproc import executable
 
 # How long `ros2 launch` waits after SIGINT before it sends SIGTERM (s): every node must be done by then.
 LAUNCH_SIGTERM_TIMEOUT_S = 5.0

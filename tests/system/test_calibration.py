@@ -14,7 +14,7 @@ import yaml
 
 from g2p.bags.dataset import load_run
 from g2p.sim.calibration import LegCalibration
-from tests.nodes.rosproc import executable
+from tests.ros.rosproc import executable
 from tests.system.test_graph import run_bringup
 
 # The hidden rig: the model changed on the five parameters the fast calibration fits.

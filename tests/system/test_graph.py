@@ -17,24 +17,24 @@ import pytest
 from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
 
-from g2p.babbling import BabblingConfig
 from g2p.bags import BagReader
 from g2p.bags.dataset import load_run, load_training_data
-from g2p.closed_loop import FeedbackConfig, Trajectory, TrajectoryTracker
-from g2p.envelope import replay
-from g2p.experiments import run_treadmill
 from g2p.inverse_map import InverseMap
-from g2p.learner import Learner, LearnerConfig
-from g2p.limit_cycle import LimitCycleConfig, attempt_kinematics
+from g2p.learning.babbling import BabblingConfig
+from g2p.learning.experiments import run_treadmill
+from g2p.learning.learner import Learner, LearnerConfig
+from g2p.learning.limit_cycle import LimitCycleConfig, attempt_kinematics
+from g2p.learning.search import SearchConfig
 from g2p.plant import TickSample
 from g2p.rig import PlantRig
+from g2p.rig.closed_loop import FeedbackConfig, Trajectory, TrajectoryTracker
+from g2p.rig.envelope import replay
 from g2p.safety import BASELINE_ACTIVATION
-from g2p.search import SearchConfig
 from g2p.sim import MujocoLeg, MujocoLegConfig
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_interfaces.msg import MotorActivation
 from g2p_ros import contract
-from tests.nodes.rosproc import NodeProcess, RosPeer, executable, wait_until
+from tests.ros.rosproc import NodeProcess, RosPeer, executable, wait_until
 from tests.viewer.foxglove_client import FoxgloveClient
 
 FEATURES = [0.6, 0.5, 0.7, 0.4, 0.6, 0.5, 0.6, 0.7, 0.5, 0.6]

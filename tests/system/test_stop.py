@@ -16,7 +16,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from g2p.bags.dataset import load_run
 from g2p_interfaces.msg import LearnerEvent
-from tests.nodes.rosproc import NodeProcess, RosPeer, wait_until
+from tests.ros.rosproc import NodeProcess, RosPeer, wait_until
 from tests.system.launched import (
     LAUNCH_SIGTERM_TIMEOUT_S,
     LaunchedGraph,

@@ -24,7 +24,7 @@ from g2p.safety import BASELINE_ACTIVATION
 from g2p_twohost.graph import HostProcess, TwoHostGraph, ros_params, set_args
 from g2p_twohost.hosts import TwoHosts
 from tests.commands import console_script
-from tests.nodes.rosproc import executable
+from tests.ros.rosproc import executable
 from tests.system.launched import Stopped, assert_every_tick_recorded, assert_stopped_cleanly
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -13,8 +13,8 @@ from mcap.reader import make_reader
 
 from g2p.bags.dataset import load_run
 from g2p.bags.events import RunEvent
-from g2p.config import ConfigError
-from g2p.urdf import packaged_leg_description
+from g2p.description.urdf import packaged_leg_description
+from g2p.validation import ConfigError
 from g2p.viewer.channels import ATTEMPTS_TOPIC, JOINTS_TOPIC, SCENE_TOPIC, joints_message
 from g2p.viewer.layout import layout_json, packaged_layout_path
 from g2p.viewer.replay import replay_bag

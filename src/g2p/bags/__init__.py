@@ -2,6 +2,8 @@
 
 ROS-free: the ROS nodes in g2p_ros wire subscriptions and publishers and call this package. Bags are
 rosbag2 format version 9 with MCAP storage and zstd-compressed chunks (see docs/BAGS.md).
+
+May import: g2p.description, g2p.inverse_map, g2p.rig, g2p.learning.
 """
 
 from typing import TYPE_CHECKING, Any

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from g2p.bags.runs import is_safe_name
 from g2p.bags.selection import TopicSelection
-from g2p.config import ConfigError, require, require_positive
+from g2p.validation import ConfigError, require, require_positive
 
 
 @dataclass(frozen=True)

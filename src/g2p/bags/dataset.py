@@ -41,10 +41,10 @@ from g2p.bags.events import (
 from g2p.bags.reader import BagReader
 from g2p.bags.ticks import TickAssembler, Ticks, header_stamp_ns, rig_topic_names
 from g2p.description import LegDescription
+from g2p.description.urdf import UrdfError, parse_leg_urdf
+from g2p.learning.run_events import CONTROL, DESIRED_RAD, FIRST_TICK_STAMP_NS, TICKS, Event
 from g2p.plant import N_JOINTS, Recording, concatenate
 from g2p.rig import DEFAULT_NAMESPACE
-from g2p.run_events import CONTROL, DESIRED_RAD, FIRST_TICK_STAMP_NS, TICKS, Event
-from g2p.urdf import UrdfError, parse_leg_urdf
 
 BABBLING = "babbling"
 # The rig nodes publish the leg's URDF here (std_msgs/String, latched), relative to the rig namespace.
@@ -145,7 +145,7 @@ class RunData:
         inverse_maps: the inverse-map snapshots, in stamp order.
         configs: each node's configuration (topic -> parsed JSON) from the latched `~/config` topics.
         leg_description: the leg the rig ran, from the last message on its `robot_description` topic
-            (the URDF the rig nodes publish, g2p.urdf); None when the bag has none (older bags).
+            (the URDF the rig nodes publish, g2p.description.urdf); None when the bag has none (older bags).
         rig_limits: each tick's `rig_limits` message (by stamp, ns): the activation the rig decided,
             before its safety envelope, and the trip; None when the bag has none.
     """

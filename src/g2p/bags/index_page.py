@@ -27,7 +27,7 @@ figcaption { color: #444; margin-top: 0.3em; }
 
 _LEG_SOURCES = {
     "bag": "the bag's <code>robot_description</code> (the URDF the rig published)",
-    "packaged": "the packaged URDF (<code>g2p/models/leg.urdf</code>): the bag has no "
+    "packaged": "the packaged URDF (<code>g2p/description/models/leg.urdf</code>): the bag has no "
     "<code>robot_description</code>",
 }
 

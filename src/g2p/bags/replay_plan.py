@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from g2p.bags.metadata import TopicInfo
 from g2p.bags.qos import EndpointQos, replay_qos
-from g2p.config import ConfigError, require, require_non_negative
+from g2p.validation import ConfigError, require, require_non_negative
 
 CLOCK_TOPIC = "/clock"
 

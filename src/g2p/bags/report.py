@@ -23,9 +23,9 @@ from g2p.bags.index_page import IndexEntry, index_html
 from g2p.bags.runs import report_dir, summary_path
 from g2p.bags.summary import find_joint_limits, find_threshold, summarize, summary_markdown
 from g2p.description import LegDescription
+from g2p.description.urdf import UrdfError, packaged_leg_description
 from g2p.files import write_text_atomically
 from g2p.rig import DEFAULT_NAMESPACE
-from g2p.urdf import UrdfError, packaged_leg_description
 
 FIGURES = (
     "fig4a_reward.png",

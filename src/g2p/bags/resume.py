@@ -1,9 +1,9 @@
 """Where a recorded treadmill run can continue: its last checkpoint and the data the learner had then.
 
 The learner publishes a "checkpoint" event after the babbling fit and after every attempt of a `learn`
-run (g2p.checkpoint: map, validation split, generators, search). With the run's babbling segments and
-completed attempts read back from the same bag, `g2p.checkpoint.restore` rebuilds the learner exactly.
-The bag may still be being recorded (the recorder beside the rig keeps recording while the learner is
+run (g2p.learning.checkpoint: map, validation split, generators, search). With the run's babbling segments
+and completed attempts read back from the same bag, `g2p.learning.checkpoint.restore` rebuilds the learner
+exactly. The bag may still be being recorded (the recorder beside the rig keeps recording while the learner is
 restarted): it is then read from a recovered copy, and the original is left untouched.
 """
 
@@ -19,14 +19,14 @@ from typing import Any
 from g2p.bags.dataset import RunData, load_run
 from g2p.bags.errors import BagError
 from g2p.bags.recover import bag_is_complete, recover_bag
-from g2p.checkpoint import Checkpoint, CheckpointError, restore
-from g2p.experiments import TreadmillRun
-from g2p.learner import LearnerConfig
-from g2p.limit_cycle import LimitCycleConfig
+from g2p.learning.checkpoint import Checkpoint, CheckpointError, restore
+from g2p.learning.experiments import TreadmillRun
+from g2p.learning.learner import LearnerConfig
+from g2p.learning.limit_cycle import LimitCycleConfig
+from g2p.learning.run_events import CHECKPOINT, SEARCH, Event
+from g2p.learning.search import SearchConfig
 from g2p.plant import Recording
 from g2p.rig import DEFAULT_NAMESPACE
-from g2p.run_events import CHECKPOINT, SEARCH, Event
-from g2p.search import SearchConfig
 
 TREADMILL_PHASES = ("exploration", "exploitation")
 

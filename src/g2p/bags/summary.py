@@ -15,8 +15,8 @@ import numpy as np
 
 from g2p.bags.dataset import AttemptData, RunData
 from g2p.bags.events import FloatArray
-from g2p.envelope import stop_entry_speeds
-from g2p.run_events import Event
+from g2p.learning.run_events import Event
+from g2p.rig.envelope import stop_entry_speeds
 
 # G2P_FACTS.md: exploration stops when an attempt's belt travel exceeds 64 mm.
 PAPER_THRESHOLD_MM = 64.0
@@ -257,7 +257,7 @@ def _attempt_summary(a: AttemptData, best: float, limits: FloatArray | None) -> 
 def _stop_entries(
     position_rad: FloatArray, velocity_rad_s: FloatArray, limits: FloatArray | None
 ) -> dict[str, Any]:
-    """How often, and how hard, the joints entered their stops (g2p.envelope.stop_entry_speeds)."""
+    """How often, and how hard, the joints entered their stops (g2p.rig.envelope.stop_entry_speeds)."""
     if limits is None or not len(position_rad):
         return {"stop_entries": 0, "stop_entry_max_rad_s": float("nan")}
     speeds = np.concatenate(

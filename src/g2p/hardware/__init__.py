@@ -5,9 +5,11 @@
     leg = HardwareLeg(open_devices(rig), rig)     # a g2p.plant.Plant; outputs off until reset()
 
 Device classes take their bus object (spidev-, smbus2- or gpiod-like) as an argument; only
-`g2p.hardware.devices.open_devices` imports spidev, smbus2 and gpiod, lazily. `g2p.hardware.fake_chips` has
+`g2p.hardware.devices.open_devices` imports spidev, smbus2 and gpiod, lazily. `g2p.hardware_fake.chips` has
 chips that answer byte for byte, backed by the MuJoCo leg, for tests and benches without a Pi.
 docs/DRIVER.md describes the wiring.
+
+May import: nothing of g2p beyond the top-level modules (it is what the Pi installs).
 """
 
 from g2p.hardware.as5048a import AS5048A, EncoderModel, MagnetStatus

@@ -1,7 +1,7 @@
 """What the device classes need from a bus: the subset of spidev, smbus2 and gpiod they use.
 
 The device classes take these objects as arguments and never import the Linux libraries themselves;
-`g2p.hardware.devices` opens the real ones and `g2p.hardware.fake_chips` provides chips that answer byte for
+`g2p.hardware.devices` opens the real ones and `g2p.hardware_fake.chips` provides chips that answer byte for
 byte, so everything above this layer is tested without a Raspberry Pi.
 """
 

@@ -3,7 +3,7 @@
 `open_devices(rig)` opens /dev/spidevN.M (spidev), /dev/i2c-N (smbus2), the enable line (gpiod 2.x) and
 sysfs PWM, importing those libraries only when called, so the rest of the package imports anywhere.
 `build_devices(rig, buses)` does the chip set-up for any bus factory: the same code runs against the
-physics-backed fake rig of `g2p.hardware.fake_rig`.
+physics-backed fake rig of `g2p.hardware_fake.buses`.
 """
 
 from __future__ import annotations

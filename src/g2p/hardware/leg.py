@@ -28,7 +28,6 @@ from typing import TypeVar
 
 import numpy as np
 
-from g2p.config import require, require_non_negative, require_positive
 from g2p.hardware.clock import Clock, MonotonicClock
 from g2p.hardware.devices import RigDevices
 from g2p.hardware.errors import EncoderErrorFlag, EncoderParityError, HardwareError, HardwareFault
@@ -38,6 +37,7 @@ from g2p.hardware.realtime import StallWatchdog, request_sched_fifo
 from g2p.hardware.wiring import WiringConfig
 from g2p.plant import N_JOINTS, N_MOTORS, NOMINAL_TICK_HZ, FloatArray, TickSample
 from g2p.safety import BASELINE_ACTIVATION, check_activation, clamp_activation
+from g2p.validation import require, require_non_negative, require_positive
 
 _log = logging.getLogger(__name__)
 _T = TypeVar("_T")

@@ -20,9 +20,9 @@ from typing import Any, TypeVar
 
 import yaml
 
-from g2p.config import ConfigError, require, require_positive
 from g2p.hardware.as5048a import COUNTS_PER_TURN, EncoderModel
 from g2p.hardware.pca9685 import N_CHANNELS, prescale_for
+from g2p.validation import ConfigError, require, require_positive
 
 T = TypeVar("T")
 

@@ -5,6 +5,8 @@
     cal.calibration.to_yaml()   # what MujocoLegConfig(calibration=...) loads
 
 docs/SIMULATOR.md ("Calibration") describes the method and its limits.
+
+May import: g2p.description, g2p.inverse_map, g2p.rig, g2p.sim, g2p.learning, g2p.bags.
 """
 
 from g2p.identification.calibrate import Calibration, calibrate

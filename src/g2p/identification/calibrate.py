@@ -23,7 +23,6 @@ from pathlib import Path
 
 import numpy as np
 
-from g2p.config import ConfigError
 from g2p.files import write_atomically, write_text_atomically
 from g2p.identification.fit import (
     DEFAULT_PARAMETERS,
@@ -38,6 +37,7 @@ from g2p.identification.fit import (
 from g2p.identification.segments import CalibrationInputError, RecordedRun, Segment, load_recorded_run
 from g2p.plant import NOMINAL_TICK_HZ, FloatArray
 from g2p.sim.calibration import PARAMETERS, LegCalibration
+from g2p.validation import ConfigError
 
 _BELT_PARAMETERS = ("belt_drag_n", "belt_damping_ns_per_m")
 # The belt counts as moved when its speed exceeded this at some tick (mm/s).

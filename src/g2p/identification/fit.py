@@ -34,12 +34,12 @@ from typing import Any
 
 import numpy as np
 
-from g2p.config import ConfigError, require, require_positive
 from g2p.identification.segments import Segment
 from g2p.plant import FloatArray
 from g2p.sim.calibration import PARAMETERS, LegCalibration, model_values
 from g2p.sim.config import MujocoLegConfig
 from g2p.sim.leg import MujocoLeg
+from g2p.validation import ConfigError, require, require_positive
 
 # The parameters a calibration fits unless told otherwise: the leg, its motors and their supply, the belt
 # and the sensors (the belt span and the foot's friction act only in stance and are left to the model;

@@ -7,11 +7,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from g2p.attempt import run_attempt
-from g2p.babbling import BabblingConfig, babbling_activations
 from g2p.identification.segments import Segment, segment_of
 from g2p.inverse_map import InverseMap
-from g2p.limit_cycle import LimitCycleConfig
+from g2p.learning.attempt import run_attempt
+from g2p.learning.babbling import BabblingConfig, babbling_activations
+from g2p.learning.limit_cycle import LimitCycleConfig
 from g2p.plant import Recording
 from g2p.rig import PlantRig
 from g2p.sim.calibration import LegCalibration

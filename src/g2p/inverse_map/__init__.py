@@ -13,6 +13,8 @@ across refinements. The default optimizer is
 Levenberg-Marquardt, as the authors' MATLAB trainlm; full-batch L-BFGS and minibatch Adam are selectable.
 The training runs in torch (`g2p.inverse_map.training`), imported by the first fit: torch takes about a second
 to import, and the map's configuration, prediction and files need none of it.
+
+May import: nothing of g2p beyond the top-level modules.
 """
 
 from __future__ import annotations
@@ -29,7 +31,6 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from g2p.config import ConfigError
 from g2p.inverse_map.config import (
     N_INPUTS,
     N_OUTPUTS,
@@ -39,6 +40,7 @@ from g2p.inverse_map.config import (
     Optimizer,
     StopReason,
 )
+from g2p.validation import ConfigError
 
 FloatArray = NDArray[np.float64]
 
@@ -257,7 +259,7 @@ class InverseMap:
             raise InverseMapError("x: non-finite values")
         w1, b1, w2, b2 = params
         # Products summed row by row rather than a BLAS matrix product, whose summation order depends on
-        # the batch: a rig evaluating the map one tick at a time (g2p.closed_loop) then gets exactly the
+        # the batch: a rig evaluating the map one tick at a time (g2p.rig.closed_loop) then gets exactly the
         # activations a whole sequence gets.
         hidden = np.tanh((xs.forward(xa)[:, np.newaxis, :] * w1).sum(axis=2) + b1)
         out = ys.inverse((hidden[:, np.newaxis, :] * w2).sum(axis=2) + b2)

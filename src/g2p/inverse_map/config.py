@@ -9,8 +9,8 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
-from g2p.config import ConfigError, require, require_positive, require_range
 from g2p.safety import BASELINE_ACTIVATION
+from g2p.validation import ConfigError, require, require_positive, require_range
 
 N_INPUTS = 6
 N_OUTPUTS = 3

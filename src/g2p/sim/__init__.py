@@ -3,7 +3,9 @@
     from g2p.sim import MujocoLeg, MujocoLegConfig, AIR_CARRIAGE_HEIGHT_M
     plant = MujocoLeg(MujocoLegConfig(carriage_height_m=AIR_CARRIAGE_HEIGHT_M))
 
-The model is the MJCF file g2p/models/leg.xml; docs/SIMULATOR.md describes it.
+The model is the MJCF file g2p/description/models/leg.xml; docs/SIMULATOR.md describes it.
+
+May import: g2p.description.
 """
 
 from g2p.sim.config import (

@@ -15,7 +15,7 @@ A calibration file is a small versioned YAML document (docs/SIMULATOR.md, "Calib
 Most parameters are the MJCF model's (joint losses, tendon stiffness and moment arms, motor lag and current,
 belt and foot); three are the sensors' (the two encoder zero offsets and the encoder delay), which the plant
 applies to what it reads. `MujocoLegConfig.calibration` names a file, or one of the calibrations packaged in
-g2p/models/calibrations/ by its name (e.g. "paper").
+g2p/description/models/calibrations/ by its name (e.g. "paper").
 """
 
 from __future__ import annotations
@@ -357,11 +357,11 @@ PARAMETERS: dict[str, LegParameter] = {p.name: p for p in _parameters()}
 
 
 def _packaged_dir() -> Path:
-    return Path(str(resources.files("g2p").joinpath("models", "calibrations")))
+    return Path(str(resources.files("g2p.description").joinpath("models", "calibrations")))
 
 
 def packaged_calibrations() -> list[str]:
-    """Names of the calibrations shipped in g2p/models/calibrations/."""
+    """Names of the calibrations shipped in g2p/description/models/calibrations/."""
     return sorted(p.stem for p in _packaged_dir().glob("*.yaml"))
 
 

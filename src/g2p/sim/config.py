@@ -7,10 +7,10 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from g2p.config import ConfigError, require, require_positive
 from g2p.plant import NOMINAL_TICK_HZ
 from g2p.safety import BASELINE_ACTIVATION
 from g2p.sim.calibration import CalibrationError, LegCalibration
+from g2p.validation import ConfigError, require, require_positive
 
 # Height of the hip axis above the belt surface (m). The straight leg reaches 0.437 m below the hip
 # (thigh 0.2 + shank 0.2 + ankle-to-sole 0.037), so at 0.42 m the extended leg presses 17 mm into the
@@ -22,8 +22,8 @@ AIR_CARRIAGE_HEIGHT_M = 0.60
 
 
 def packaged_model_path() -> Path:
-    """Path of the MJCF model shipped with the package (g2p/models/leg.xml)."""
-    return Path(str(resources.files("g2p").joinpath("models", "leg.xml")))
+    """Path of the MJCF model shipped with the package (g2p/description/models/leg.xml)."""
+    return Path(str(resources.files("g2p.description").joinpath("models", "leg.xml")))
 
 
 @dataclass(frozen=True)
@@ -31,8 +31,9 @@ class MujocoLegConfig:
     """Settings of the simulated rig; the physics itself lives in the MJCF model.
 
     Attributes:
-        model_path: MJCF file of the leg; "" uses the packaged `g2p/models/leg.xml`. A custom model must
-            keep the element names of the packaged one (joints, tendons, actuators, custom numerics).
+        model_path: MJCF file of the leg; "" uses the packaged `g2p/description/models/leg.xml`. A custom
+            model must keep the element names of the packaged one (joints, tendons, actuators, custom
+            numerics).
         carriage_height_m: height of the hip axis above the belt surface (m). TREADMILL_CARRIAGE_HEIGHT_M
             puts the foot on the belt, AIR_CARRIAGE_HEIGHT_M keeps it in the air.
         calibration: the leg's physical parameters that differ from the model's (g2p.sim.calibration): a

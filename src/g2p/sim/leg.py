@@ -151,8 +151,8 @@ class MujocoLeg:
     ) -> TickSample:
         """Start an episode as a fresh rig would: `reset`, meters at 0, joints perturbed, jitter from `rng`.
 
-        For reinforcement learning (g2p.envs): the belt odometer and the energy meters read 0 again, so that
-        an episode's numbers do not depend on the ones before it (the same generator state gives the same
+        For reinforcement learning (g2p.rl.envs): the belt odometer and the energy meters read 0 again, so
+        that an episode's numbers do not depend on the ones before it (the same generator state gives the same
         episode, bit for bit), and the windings are at ambient temperature; the joint angles move by
         U(-noise_scale, noise_scale) rad and the joint velocities by noise_scale * N(0, 1) rad/s, as in
         Gymnasium's MuJoCo environments; the tick jitter is drawn from `rng` from now on. The clock runs on.

@@ -26,7 +26,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from g2p.envelope import first_order_temperature
+from g2p.plant import first_order_temperature
 from g2p.sim.motor import MotorConstants
 
 FloatArray = NDArray[np.float64]

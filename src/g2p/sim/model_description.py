@@ -1,7 +1,7 @@
 """The leg's description (g2p.description) read from the compiled MuJoCo model the simulator runs.
 
-`python -m g2p.sim.model_description > src/g2p/models/leg.urdf` regenerates the packaged URDF (g2p.urdf)
-from the packaged model at the treadmill carriage height.
+`python -m g2p.sim.model_description > src/g2p/description/models/leg.urdf` regenerates the packaged URDF
+(g2p.description.urdf) from the packaged model at the treadmill carriage height.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ import mujoco
 import numpy as np
 
 from g2p.description import Joint, LegDescription, Link
+from g2p.description.urdf import leg_urdf
 from g2p.sim.config import TREADMILL_CARRIAGE_HEIGHT_M, MujocoLegConfig, packaged_model_path
 from g2p.sim.model import CARRIAGE_BODY, ModelError, load_leg_model
-from g2p.urdf import leg_urdf
 
 # Bodies of the three links, their joints, and the geoms drawn for them.
 _LINK_BODIES = ("thigh", "shank", "foot")
@@ -116,12 +116,14 @@ def config_description(config: MujocoLegConfig) -> LegDescription:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Print the URDF of a leg model: `python -m g2p.sim.model_description > src/g2p/models/leg.urdf`."""
+    """Print a leg model's URDF (`> src/g2p/description/models/leg.urdf` regenerates the packaged one)."""
     parser = argparse.ArgumentParser(
         prog="python -m g2p.sim.model_description",
         description="Print the URDF (robot_description) of the leg's MuJoCo model.",
     )
-    parser.add_argument("--model", default="", help="MJCF file (default: the packaged g2p/models/leg.xml)")
+    parser.add_argument(
+        "--model", default="", help="MJCF file (default: the packaged g2p/description/models/leg.xml)"
+    )
     parser.add_argument(
         "--carriage-height-m",
         type=float,

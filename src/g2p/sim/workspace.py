@@ -23,7 +23,7 @@ class JointWorkspace:
 
     @property
     def stepping_radius_rad(self) -> tuple[float, float]:
-        """Signed radii for g2p.limit_cycle that run its cycles in the stepping direction (rad).
+        """Signed radii for g2p.learning.limit_cycle that run its cycles in the stepping direction (rad).
 
         There, point = centre + f * radius * (sin theta, cos theta), which runs clockwise in the
         (proximal, distal) plane when both radii are positive; stepping runs counter-clockwise, so the

@@ -7,4 +7,6 @@
 - layout: the Foxglove layout shipped as layout.json.
 
 Needs the `view` extra (`pip install -e .[view]`).
+
+May import: g2p.description, g2p.rig, g2p.learning, g2p.bags.
 """

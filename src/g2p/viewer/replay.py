@@ -28,9 +28,9 @@ from g2p.bags.events import LEARNER_EVENT_TYPE, RunEvent, run_event
 from g2p.bags.metadata import read_metadata
 from g2p.bags.reader import BagReader
 from g2p.bags.ticks import header_stamp_ns, rig_topic_names
+from g2p.description.urdf import parse_leg_urdf
+from g2p.learning.run_events import DESIRED_CYCLE_RAD, DESIRED_RAD, FIRST_TICK_STAMP_NS, Event
 from g2p.rig import DEFAULT_NAMESPACE
-from g2p.run_events import DESIRED_CYCLE_RAD, DESIRED_RAD, FIRST_TICK_STAMP_NS, Event
-from g2p.urdf import parse_leg_urdf
 from g2p.viewer.server import LegViewer
 
 

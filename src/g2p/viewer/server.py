@@ -21,8 +21,8 @@ from foxglove import Context, start_server
 from foxglove.websocket import ChannelView, Client, ServerListener
 
 from g2p.bags.events import RunEvent
-from g2p.config import require, require_positive
 from g2p.description import FloatArray, LegDescription
+from g2p.validation import require, require_positive
 from g2p.viewer.channels import ViewChannels
 from g2p.viewer.state import ViewState
 

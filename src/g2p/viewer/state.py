@@ -24,7 +24,7 @@ import numpy as np
 
 from g2p.bags.events import RunEvent
 from g2p.description import FloatArray, LegDescription, foot_path, forward_kinematics
-from g2p.run_events import CONTROL, DESIRED_CYCLE_RAD, FIRST_TICK_STAMP_NS, Event
+from g2p.learning.run_events import CONTROL, DESIRED_CYCLE_RAD, FIRST_TICK_STAMP_NS, Event
 
 # Belt marks drawn every 50 mm, so that its travel is visible.
 BELT_MARK_SPACING_M = 0.05
