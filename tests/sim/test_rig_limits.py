@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import math
+import re
+from collections.abc import Iterable
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from g2p.plant import hold
 from g2p.rig.envelope import JOINT_STOPS_RAD, WindingRating
-from g2p.sim import MujocoLeg
-from g2p.sim.limits import COOLDOWN_HYSTERESIS_K, available_current_a
+from g2p.sim import ModelError, MujocoLeg, MujocoLegConfig, packaged_model_path
+from g2p.sim.limits import COOLDOWN_HYSTERESIS_K, NUMERICS, available_current_a
 
 
 def test_an_unloaded_spool_runs_up_to_its_no_load_speed_at_the_supply_voltage(air_plant: MujocoLeg) -> None:
@@ -124,3 +127,36 @@ def test_the_envelopes_rated_values_are_the_simulated_rigs(air_plant: MujocoLeg)
     assert rating.ambient_c == limits.ambient_c
     for name, stops in zip(("proximal", "distal"), JOINT_STOPS_RAD, strict=True):
         np.testing.assert_allclose(model.jnt_range[model.joint(name).id], stops, atol=1e-12)
+
+
+def without_numerics(tmp_path: Path, names: Iterable[str]) -> Path:
+    """The packaged model with the custom numerics `names` removed, written into tmp_path."""
+    text = packaged_model_path().read_text()
+    for name in names:
+        text, found = re.subn(rf'\s*<numeric name="{name}" [^>]*/>[^\n]*', "", text)
+        assert found == 1, name
+    path = tmp_path / "my_leg.xml"
+    path.write_text(text)
+    return path
+
+
+def test_a_model_written_before_the_limits_is_refused_naming_every_missing_numeric(tmp_path: Path) -> None:
+    path = without_numerics(tmp_path, NUMERICS.values())
+    with pytest.raises(ModelError) as raised:
+        MujocoLeg(MujocoLegConfig(model_path=str(path)))
+    message = str(raised.value)
+    assert message.startswith(f"{path}: model lacks the custom numerics {', '.join(NUMERICS.values())}; ")
+    # The packaged values, as lines to copy into the model's <custom> block.
+    packaged = packaged_model_path().read_text()
+    for name in NUMERICS.values():
+        line = re.search(rf'<numeric name="{name}" data="[^"]*"/>', packaged)
+        assert line is not None and f"\n    {line.group()}" in message, name
+    assert '<numeric name="supply_voltage" data="12"/>' in message
+    assert "motor_kt" not in message  # what the model has is not asked for
+
+
+def test_a_model_without_custom_numerics_is_refused_naming_the_motors_and_the_limits(tmp_path: Path) -> None:
+    motors = ("motor_kt", "motor_resistance", "motor_max_current", "spool_radius")
+    path = without_numerics(tmp_path, (*motors, *NUMERICS.values()))
+    with pytest.raises(ModelError, match=", ".join((*motors, *NUMERICS.values()))):
+        MujocoLeg(MujocoLegConfig(model_path=str(path)))

@@ -17,14 +17,10 @@ from g2p.sim.calibration import LegCalibration
 from tests.ros.rosproc import executable
 from tests.system.test_graph import run_bringup
 
-# The hidden rig: the model changed on the five parameters the fast calibration fits.
-HIDDEN = {
-    "motor_lag_s": 0.04,
-    "motor_max_current_a": 7.2,
-    "m1_proximal_arm_m": -0.055,
-    "proximal_encoder_offset_rad": 0.02,
-    "distal_encoder_offset_rad": -0.015,
-}
+# The hidden rig: the model with the motors' lag this quick calibration fits changed (the model's: 0.03 s).
+# How closely a calibration recovers a hidden rig, and whether its intervals hold the truth, are known
+# answers of tests/identification/test_fit.py on a run recorded in process; here, the user's path.
+HIDDEN = {"motor_lag_s": 0.04}
 
 
 def g2p_calibrate() -> str:
@@ -35,7 +31,6 @@ def g2p_calibrate() -> str:
 
 
 @pytest.mark.slow
-@pytest.mark.timeout(1200)  # the intervals' refits double the fit: 395-414 s here
 def test_a_hidden_rig_is_recovered_from_its_bag_and_served(tmp_path: Path) -> None:
     hidden = tmp_path / "hidden.yaml"
     hidden.write_text(LegCalibration(HIDDEN).to_yaml())
@@ -44,8 +39,8 @@ def test_a_hidden_rig_is_recovered_from_its_bag_and_served(tmp_path: Path) -> No
         tmp_path,
         *("--rig", "sim_air", "--bags-dir", str(bags), "--run-id", "hidden"),
         *("--set", f"rig.leg.calibration={hidden}"),
-        *("--set", "learner.learner.babbling.duration_s=40.0", "--set", "learner.cycle.n_cycles=4"),
-        *("--set", "learner.search.max_exploration_attempts=2"),
+        *("--set", "learner.learner.babbling.duration_s=11.0", "--set", "learner.cycle.n_cycles=2"),
+        *("--set", "learner.search.max_exploration_attempts=1"),
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     # The bag says which calibration ran, values and all.
@@ -53,39 +48,25 @@ def test_a_hidden_rig_is_recovered_from_its_bag_and_served(tmp_path: Path) -> No
     assert recorded["leg"]["calibration"] == str(hidden)
     assert recorded["calibration"]["parameters"] == pytest.approx(HIDDEN)
 
+    # A quick calibration, as a user makes one: one parameter, the Jacobian's intervals alone.
     out = tmp_path / "calibration.yaml"
     calibrate = subprocess.run(
-        # 8-tick windows: on this run's babbling (braked at its stops by the rig's envelope) the default
-        # 16-tick windows' residual is rough enough to stop the fit in a local minimum (motor lag 0.0379 s,
-        # cost 11,836 against the truth's 11); shorter horizons keep it smooth (FitConfig.window_ticks).
         [
-            g2p_calibrate(),
-            str(bags / "hidden"),
-            "--out",
-            str(out),
-            "--params",
-            ",".join(HIDDEN),
-            "--window-ticks",
-            "8",
+            *(g2p_calibrate(), str(bags / "hidden"), "--out", str(out)),
+            *("--params", ",".join(HIDDEN), "--interval-blocks", "0"),
         ],
         capture_output=True,
         text=True,
-        timeout=900,
+        timeout=300,
     )
     assert calibrate.returncode == 0, calibrate.stdout + calibrate.stderr
     cal = LegCalibration.load(str(out))
-    # Tolerances as measured (docs/SIMULATOR.md, "Calibration"): the motors and the moment arm within 3 %,
-    # the encoder offsets within 0.4 deg (the windows' restarts leave them to the dynamics alone).
+    assert set(cal.parameters) == set(HIDDEN) and cal.fit["interval_blocks"] == 0
     for name, truth in HIDDEN.items():
-        tolerance = dict(abs=0.007) if name.endswith("offset_rad") else dict(rel=0.03)
-        assert cal.parameters[name] == pytest.approx(truth, **tolerance), name
-    # The intervals come from refits on 4 stretches of 10 s: on these the knee's offset, which only
-    # gravity and the stops see between the windows' restarts, may spread by more than half its unit
-    # (0.01 rad) and be reported undetermined; nothing else is.
-    assert cal.fit["interval_blocks"] == 4 and all(0 < cal.intervals[n] < np.inf for n in HIDDEN)
-    assert set(cal.undetermined) <= {"distal_encoder_offset_rad"}
+        assert cal.parameters[name] == pytest.approx(truth, rel=0.05), name
+        assert 0 < cal.intervals[name] < np.inf
+    assert cal.fit["held_out"] == "1 attempts"
     rmse = cal.fit["joint_angle_rmse_rad"]["held_out"]
-    assert cal.fit["held_out"] == "2 attempts"
     assert rmse["calibrated"] <= rmse["model"] / 3
     assert (tmp_path / "calibration.yaml.report" / "calibration.md").is_file()
     assert (tmp_path / "calibration.yaml.report" / "angles_held_out.png").is_file()

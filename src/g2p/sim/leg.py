@@ -20,8 +20,14 @@ from g2p.plant import MOTOR_NAMES, N_MOTORS, FloatArray, TickSample
 from g2p.safety import check_activation, clamp_activation
 from g2p.sim.calibration import MAX_ENCODER_DELAY_S, LegCalibration
 from g2p.sim.config import MujocoLegConfig
-from g2p.sim.limits import COOLDOWN_HYSTERESIS_K, RigLimits, available_current_a, winding_temperature_c
-from g2p.sim.model import IntArray, LegModel, load_leg_model
+from g2p.sim.limits import (
+    COOLDOWN_HYSTERESIS_K,
+    NUMERICS,
+    PhysicalLimits,
+    available_current_a,
+    winding_temperature_c,
+)
+from g2p.sim.model import IntArray, LegModel, ModelError, load_leg_model
 from g2p.sim.motor import electrical_power_w
 from g2p.sim.sensors import TickClock, quantize_angle
 
@@ -61,7 +67,8 @@ class MujocoLeg:
 
     Raises:
         ConfigError: invalid configuration (raised by MujocoLegConfig).
-        ModelError: the MJCF model lacks an element the plant needs.
+        ModelError: the MJCF model lacks an element the plant needs (the message names the file, and every
+            custom numeric missing with the packaged model's line for it).
     """
 
     def __init__(
@@ -73,7 +80,9 @@ class MujocoLeg:
         self.config = config if config is not None else MujocoLegConfig()
         cfg = self.config
         self.calibration = calibration if calibration is not None else cfg.leg_calibration
-        self._leg: LegModel = load_leg_model(cfg.resolved_model_path, cfg.carriage_height_m, self.calibration)
+        self._leg: LegModel = load_leg_model(
+            cfg.resolved_model_path, cfg.carriage_height_m, self.calibration, numerics=NUMERICS.values()
+        )
         self._model = self._leg.model
         self._data = mujoco.MjData(self._model)
         # Views on the MjData buffers (they stay valid: MjData is never reallocated), to keep ticks cheap.
@@ -102,7 +111,10 @@ class MujocoLeg:
         self._hist_t = np.zeros(n_hist)
         self._hist_q = np.zeros((n_hist, 2))
         self._joint_arms = self._tendon_joint_arms()
-        self.limits = RigLimits.from_model(self._model)
+        try:
+            self.limits = PhysicalLimits.from_model(self._model)
+        except ModelError as err:
+            raise ModelError(f"{cfg.resolved_model_path}: {err}") from err
         self._stiffness = np.array(self._model.tendon_stiffness[:N_MOTORS])  # restored when re-tendoned
         self._current_hist = np.empty((self._n_sub, N_MOTORS))
         self._winding_c = np.full(N_MOTORS, self.limits.ambient_c)

@@ -13,8 +13,9 @@ models them (`MujocoLeg.step`; docs/SIMULATOR.md, "The rig's limits", gives the 
 - a slack tendon into which its spool pays out more than `tendon_derail_payout_m` of cable leaves its
   channel (the paper saw slack tendons come off their channels, and added flanges and baseline tension).
 
-A cut-out, a snapped tendon and a derailment trip the rig (`RigTrip`): the motor is off or the tendon
-carries no force until an operator resets the rig (`MujocoLeg.reset`), and the winding has cooled.
+A cut-out, a snapped tendon and a derailment trip the rig: `MujocoLeg.fault` says which, the tick loop
+raises `g2p.rig.tick_loop.RigTripped`, and the motor is off or the tendon carries no force until an
+operator resets the rig (`MujocoLeg.reset`), and the winding has cooled.
 """
 
 from __future__ import annotations
@@ -27,11 +28,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from g2p.plant import first_order_temperature
+from g2p.sim.model import ModelError, require_numerics
 from g2p.sim.motor import MotorConstants
 
 FloatArray = NDArray[np.float64]
 
-# The model's custom numerics holding each limit (leg.xml), by RigLimits field.
+# The model's custom numerics holding each limit (leg.xml), by PhysicalLimits field.
 NUMERICS = {
     "supply_voltage_v": "supply_voltage",
     "winding_thermal_resistance_k_per_w": "winding_thermal_resistance",
@@ -46,12 +48,8 @@ NUMERICS = {
 COOLDOWN_HYSTERESIS_K = 10.0
 
 
-class RigTrip(RuntimeError):
-    """A limit of the rig tripped: a motor cut out, a tendon snapped or derailed (the message says which)."""
-
-
 @dataclass(frozen=True)
-class RigLimits:
+class PhysicalLimits:
     """The rig's physical limits (see the module docstring).
 
     Attributes:
@@ -91,20 +89,22 @@ class RigLimits:
             )
 
     @classmethod
-    def from_model(cls, model: mujoco.MjModel) -> RigLimits:
+    def from_model(cls, model: mujoco.MjModel) -> PhysicalLimits:
         """The limits a compiled model holds in its custom numerics.
 
         Raises:
-            KeyError: the model lacks one (the message names it).
-            ValueError: a value is not physical.
+            ModelError: the model lacks some (the message names every one, with the packaged values), or
+                a value is not physical.
         """
+        require_numerics(model, NUMERICS.values())
         values = {}
         for field, name in NUMERICS.items():
             nid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, name)
-            if nid < 0:
-                raise KeyError(f"model has no custom numeric named {name!r}")
             values[field] = float(model.numeric_data[model.numeric_adr[nid]])
-        return cls(**values)
+        try:
+            return cls(**values)
+        except ValueError as err:
+            raise ModelError(f"invalid rig limits in the model: {err}") from err
 
 
 def available_current_a(
@@ -127,7 +127,7 @@ def available_current_a(
 
 
 def winding_temperature_c(
-    temperature_c: FloatArray, copper_loss_w: FloatArray, dt_s: float, limits: RigLimits
+    temperature_c: FloatArray, copper_loss_w: FloatArray, dt_s: float, limits: PhysicalLimits
 ) -> FloatArray:
     """The windings' temperatures (3,) (deg C) after `dt_s` of a constant copper loss (3,) (W)."""
     return first_order_temperature(

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -12,6 +14,7 @@ from numpy.typing import NDArray
 
 from g2p.plant import JOINT_NAMES, MOTOR_NAMES
 from g2p.sim.calibration import LegCalibration
+from g2p.sim.config import packaged_model_path
 from g2p.sim.motor import MotorConstants
 
 IntArray = NDArray[np.intp]
@@ -79,6 +82,29 @@ def _numeric(model: mujoco.MjModel, name: str) -> float:
     return float(model.numeric_data[model.numeric_adr[nid]])
 
 
+def packaged_numerics() -> dict[str, str]:
+    """The packaged model's custom numerics by name: each one's MJCF line, its comment (the unit) included."""
+    text = packaged_model_path().read_text()
+    return {m[2]: m[1] for m in re.finditer(r'^\s*(<numeric name="([^"]+)".*?)\s*$', text, re.MULTILINE)}
+
+
+def require_numerics(model: mujoco.MjModel, names: Iterable[str]) -> None:
+    """Raise ModelError unless the compiled model has a custom numeric of each of `names`.
+
+    The message names every one missing and gives the packaged model's lines for them, to copy into the
+    model's `<custom>` block (a model written before some of them existed lacks them).
+    """
+    missing = [n for n in names if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, n) < 0]
+    if not missing:
+        return
+    packaged = packaged_numerics()
+    lines = "\n".join(f"    {packaged[n]}" for n in missing)
+    raise ModelError(
+        f"model lacks the custom numerics {', '.join(missing)}; copy the packaged model's values "
+        f"({packaged_model_path()}) into its <custom> block:\n{lines}"
+    )
+
+
 def _check_actuators(model: mujoco.MjModel, motor: MotorConstants, spool_joints: list[int]) -> float:
     """Check each motor actuator drives its spool with torque Kt * I_max * act; return the motor lag (s)."""
     lags = []
@@ -137,16 +163,36 @@ def _check_tendons(model: mujoco.MjModel, motor: MotorConstants, spool_joints: l
 
 
 def load_leg_model(
-    path: Path, carriage_height_m: float, calibration: LegCalibration | None = None
+    path: Path,
+    carriage_height_m: float,
+    calibration: LegCalibration | None = None,
+    numerics: Iterable[str] = (),
 ) -> LegModel:
     """Compile the MJCF at `path` with the carriage (hip axis) at `carriage_height_m` above the belt.
 
     `calibration`'s model parameters are written into the compiled model.
 
+    Args:
+        path: the MJCF file.
+        carriage_height_m: the hip axis's height above the belt (m).
+        calibration: model parameters to write into the compiled model.
+        numerics: custom numerics the caller reads besides the motors' (the rig's limits: a missing one
+            is named with the motors' missing ones, in one error).
+
     Raises:
-        ModelError: a required element is missing or the motor parameters disagree.
+        ModelError: a required element is missing or the motor parameters disagree (the message starts
+            with `path`).
         ValueError: MuJoCo cannot parse or compile the file.
     """
+    try:
+        return _load_leg_model(path, carriage_height_m, calibration, numerics)
+    except ModelError as err:
+        raise ModelError(f"{path}: {err}") from err
+
+
+def _load_leg_model(
+    path: Path, carriage_height_m: float, calibration: LegCalibration | None, numerics: Iterable[str]
+) -> LegModel:
     spec = mujoco.MjSpec.from_file(str(path))
     carriage = spec.body(CARRIAGE_BODY)
     if carriage is None:
@@ -155,6 +201,7 @@ def load_leg_model(
     model = spec.compile()
     if calibration is not None:
         calibration.apply(model)
+    require_numerics(model, (*_NUMERICS.values(), *numerics))
     try:
         motor = MotorConstants(**{field: _numeric(model, name) for field, name in _NUMERICS.items()})
     except ValueError as err:
