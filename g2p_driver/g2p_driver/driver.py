@@ -26,10 +26,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import rclpy
 from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rclpy.executors import ExternalShutdownException
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import Executor
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from std_msgs.msg import Header
 
@@ -39,16 +39,19 @@ from g2p.rig import DEFAULT_NAMESPACE
 from g2p.rig.tick_loop import Pacing
 from g2p.validation import ConfigError, require, require_positive
 from g2p_ros import contract
-from g2p_ros.params import config_as_dict, declare_config, publish_config, report_invalid_parameter
+from g2p_ros.executable import run_node
+from g2p_ros.params import config_as_dict, declare_config, parameter_names, publish_config
 from g2p_ros.rig_server import RigServer, RigServerConfig
 from g2p_ros.robot_description import publish_robot_description
-from g2p_ros.signals import init_with_stop_event, spin_until_stopped
 from g2p_ros.spinner import MultiThreadedExecutor
 
 if TYPE_CHECKING:
-    from g2p.hardware_fake.buses import FakeRig, FakeRigConfig
+    from g2p.hardware_fake.buses import FakeBuses, FakeBusesConfig
 
 PACKAGE = "g2p_driver"
+# How long activate waits for the spinning thread to destroy the stopped rig servers (s). It is woken at
+# once and only finishes the spin_once it is in; this bounds the wait on an executor that no longer spins.
+RETIRED_DESTROY_TIMEOUT_S = 5.0
 
 
 @dataclass(frozen=True)
@@ -112,20 +115,24 @@ class DriverNode(LifecycleNode):
         # What make_safe and destroy_node use, first: rclpy's shutdown destroys a node whose construction
         # failed (an invalid parameter) too.
         self.leg: HardwareLeg | None = None
-        self.fake: FakeRig | None = None
+        self.fake: FakeBuses | None = None
         self._server: RigServer | None = None
+        # Stopped rig servers, destroyed later by the spinning thread (see _destroy_retired_safely).
         self._retired: list[RigServer] = []
+        self._retired_changed = threading.Condition()
+        self._retired_destroy_requested = False
+        self._spinning_thread: int | None = None
         self._active = False
         self._log_handler = _RosLogHandler(self)
         self.config = declare_config(self, DriverConfig)
         self.leg_config = declare_config(self, HardwareLegConfig, "leg.")
         self.rig_server_config = declare_config(self, RigServerConfig, "rig.")
         # The fake rig and its MuJoCo leg are imported only when asked for: the Pi needs neither.
-        self.fake_config: FakeRigConfig | None = None
+        self.fake_config: FakeBusesConfig | None = None
         if self.config.fake_devices:
-            from g2p.hardware_fake.buses import FakeRigConfig
+            from g2p.hardware_fake.buses import FakeBusesConfig
 
-            self.fake_config = declare_config(self, FakeRigConfig, "fake.")
+            self.fake_config = declare_config(self, FakeBusesConfig, "fake.")
         require(
             self.leg_config.baseline_activation == self.rig_server_config.baseline_activation,
             "leg.baseline_activation",
@@ -144,6 +151,11 @@ class DriverNode(LifecycleNode):
         # The default callback group is mutually exclusive and holds the lifecycle services: a fault
         # reported by the loop thread is acted on here, never during another transition.
         self._fault_signal = self.create_guard_condition(self._on_fault_signal)
+        # Only wakes the spinning thread (spin_once returns) to destroy the retired servers; its own group,
+        # as the default one is busy with the transition that waits for it.
+        self._spinner_signal = self.create_guard_condition(
+            lambda: None, callback_group=ReentrantCallbackGroup()
+        )
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", contract.DIAGNOSTICS_QOS)
         self._diag_timer = self.create_timer(self.config.diagnostics_period_s, self._publish_diagnostics)
         self._stall_timer = self.create_timer(0.1, self._check_stall)
@@ -193,21 +205,30 @@ class DriverNode(LifecycleNode):
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Serve the rig contract; the plant switches the outputs on at baseline and settles."""
-        assert self.leg is not None
-        self._destroy_retired()
+        leg = self.leg  # once: a stop (SIGINT, SIGTERM) may make the node safe from another thread
+        if leg is None:
+            self.get_logger().error("activate failed: the devices are closed")
+            return TransitionCallbackReturn.FAILURE
+        # The servers stopped earlier (their goals ended since) serve the same names: gone first.
+        if not self._destroy_retired_safely(RETIRED_DESTROY_TIMEOUT_S):
+            self.get_logger().error(
+                "activate failed: the stopped rig server was not destroyed within "
+                f"{RETIRED_DESTROY_TIMEOUT_S:g} s"
+            )
+            return TransitionCallbackReturn.FAILURE
         with self._fault_lock:
             self._fault = None
-        server = RigServer(self, self.leg, Pacing.PLANT, self.rig_server_config, on_fault=self._on_loop_fault)
+        server = RigServer(self, leg, Pacing.PLANT, self.rig_server_config, on_fault=self._on_loop_fault)
         try:
             server.start()
         except Exception as err:
             self.get_logger().error(f"activate failed: {type(err).__name__}: {err}")
-            self._retired.append(server)
+            self._retire(server)
             return TransitionCallbackReturn.ERROR
         self._server = server
         self._active = True
         self.get_logger().info(
-            f"active: serving the rig contract in {self.get_namespace()} at {self.leg.tick_hz:g} Hz"
+            f"active: serving the rig contract in {self.get_namespace()} at {leg.tick_hz:g} Hz"
         )
         return super().on_activate(state)
 
@@ -268,15 +289,71 @@ class DriverNode(LifecycleNode):
         server, self._server = self._server, None
         if server is not None:
             server.stop()
+            self._retire(server)
+
+    def _retire(self, server: RigServer) -> None:
+        with self._retired_changed:
             self._retired.append(server)
 
+    def _destroy_retired_safely(self, timeout_s: float) -> bool:
+        """Have the retired rig servers destroyed where rclpy allows it; True once none is left.
+
+        rclpy's executor (9.1.2, ros2/rclpy#1385) lists a node's waitables (the action servers, the
+        publishers' and subscription's event handlers), then enters each: one destroyed in between from
+        another thread is added to the wait set all the same, and the spinning thread dies ("action
+        server pointer is invalid"). So a callback never destroys them: it asks the spinning thread
+        (`spin_until_stopped`), which does between two waits, and waits for it. With nothing spinning
+        (before the spin) or from the spinning thread itself, they are destroyed here. False when the
+        executor stopped spinning or `timeout_s` passed first.
+        """
+        with self._retired_changed:
+            if not self._retired:
+                return True
+            spinning = self._spinning_thread
+            if spinning is not None and spinning != threading.get_ident():
+                self._retired_destroy_requested = True
+        if spinning is None or spinning == threading.get_ident():
+            self._destroy_retired()
+            return True
+        self._spinner_signal.trigger()
+        with self._retired_changed:
+            self._retired_changed.wait_for(
+                lambda: not self._retired or self._spinning_thread is None, timeout_s
+            )
+            return not self._retired
+
+    def spin_until_stopped(self, executor: Executor, stop: threading.Event) -> None:
+        """Spin until `stop` (SIGINT, SIGTERM) or the context shuts down.
+
+        Between two spin_once, the retired rig servers a transition asked to be destroyed are destroyed
+        here (see `_destroy_retired_safely`).
+        """
+        with self._retired_changed:
+            self._spinning_thread = threading.get_ident()
+        try:
+            while not stop.is_set() and executor.context.ok():
+                executor.spin_once(timeout_sec=0.1)
+                with self._retired_changed:
+                    requested, self._retired_destroy_requested = self._retired_destroy_requested, False
+                if requested:
+                    self._destroy_retired()
+        finally:
+            with self._retired_changed:
+                self._spinning_thread = None
+                self._retired_changed.notify_all()  # a transition waiting for the spinning thread gives up
+
     def _destroy_retired(self) -> None:
-        while self._retired:
-            server = self._retired.pop()
+        """Destroy the retired servers; only where no executor thread can be waiting on them."""
+        with self._retired_changed:
+            servers = list(self._retired)
+        for server in servers:
             try:
                 server.destroy()
             except Exception as err:
                 self.get_logger().warning(f"destroying a stopped rig server: {type(err).__name__}: {err}")
+        with self._retired_changed:
+            self._retired = [s for s in self._retired if s not in servers]
+            self._retired_changed.notify_all()
 
     def _on_loop_fault(self, err: Exception) -> None:
         """From the tick loop thread: record the fault, wake the executor (the plant is at baseline)."""
@@ -326,11 +403,43 @@ class DriverNode(LifecycleNode):
         self._pub_diag.publish(DiagnosticArray(header=Header(stamp=stamp), status=[status]))
 
     def destroy_node(self) -> None:
-        """Outputs safe, the rig servers destroyed, then the node."""
+        """Outputs safe, the rig servers destroyed, then the node.
+
+        A failure once the outputs are safe is printed, not raised: the outputs matter more than tidy
+        teardown, and the process keeps its exit status.
+        """
         self.make_safe()
-        self._destroy_retired()
-        logging.getLogger("g2p.hardware").removeHandler(self._log_handler)
-        super().destroy_node()
+        try:
+            self._destroy_retired()
+            logging.getLogger("g2p.hardware").removeHandler(self._log_handler)
+            super().destroy_node()
+        except Exception as err:
+            print(f"{PACKAGE}: destroying the node: {err}", file=sys.stderr)
+
+
+def node_parameters() -> list[str]:
+    """The parameters DriverNode declares besides rclpy's, `fake.*` included (declared with fake_devices).
+
+    bringup checks its `--set` overrides against them.
+    """
+    names = [
+        *parameter_names(DriverConfig),
+        *parameter_names(HardwareLegConfig, "leg."),
+        *parameter_names(RigServerConfig, "rig."),
+    ]
+    try:  # MuJoCo: imported only when asked for
+        from g2p.hardware_fake.buses import FakeBusesConfig
+    except ImportError:  # a Pi without MuJoCo has no fake devices
+        return names
+    return [*names, *parameter_names(FakeBusesConfig, "fake.")]
+
+
+def _serve(node: DriverNode, executor: Executor, stop: threading.Event) -> int:
+    """With `autostart`, configure and activate at once; then spin until SIGINT or SIGTERM."""
+    if node.config.autostart and node.trigger_configure() == TransitionCallbackReturn.SUCCESS:
+        node.trigger_activate()
+    node.spin_until_stopped(executor, stop)
+    return 0
 
 
 def main(args: list[str] | None = None) -> None:
@@ -340,28 +449,17 @@ def main(args: list[str] | None = None) -> None:
     made safe (tick loop stopped, baseline, off) while the ROS context is still valid, so the loop and
     any running goal end cleanly before rclpy shuts down.
     """
-    stop = init_with_stop_event(args)
-    node = None
-    executor = MultiThreadedExecutor(num_threads=4)
-    try:
-        node = DriverNode()
-        executor.add_node(node)
-        if node.config.autostart and node.trigger_configure() == TransitionCallbackReturn.SUCCESS:
-            node.trigger_activate()
-        spin_until_stopped(executor, stop)
-    except ConfigError as err:
-        sys.exit(report_invalid_parameter("g2p_driver", err))
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.make_safe()  # first, on its own: the outputs matter more than tidy teardown
-            executor.shutdown()  # once its callbacks have returned: none uses a destroyed entity
-            try:
-                node.destroy_node()
-            except Exception as err:
-                print(f"g2p_driver: destroying the node: {err}", file=sys.stderr)
-        rclpy.try_shutdown()
+    sys.exit(
+        run_node(
+            PACKAGE,
+            DriverNode,
+            args,
+            executor=lambda: MultiThreadedExecutor(num_threads=4),
+            run=_serve,
+            # First, on its own: the outputs matter more than tidy teardown.
+            stop_node=lambda node: node.make_safe(),
+        )
+    )
 
 
 if __name__ == "__main__":

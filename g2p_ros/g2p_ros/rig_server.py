@@ -169,7 +169,13 @@ class RigServer:
         )
 
     def destroy(self) -> None:
-        """Stop and destroy the ROS entities this server created."""
+        """Stop and destroy the ROS entities this server created.
+
+        Call it from the thread that spins the node's executor, between two spins, or once nothing spins
+        it: rclpy's executor (9.1.2, ros2/rclpy#1385) lists the node's waitables (the action servers, the
+        publishers' event handlers) before entering them, and adds one destroyed in between to its wait
+        set all the same ("action server pointer is invalid"), ending the spin.
+        """
         self.stop()
         self._action.destroy()
         self._trajectory_action.destroy()
@@ -286,7 +292,7 @@ class RigServer:
         return list(job.samples)
 
     def _samples_msg(self, samples: list[TickSample]) -> Any:
-        stamps = np.array([self._out.stamp_ns(sample.t_s) for sample in samples], dtype=np.int64)
+        stamps = np.array([self._out.tick_stamp_ns(sample.t_s) for sample in samples], dtype=np.int64)
         return rig_samples_msg(Recording.from_samples(samples), stamps)
 
     def _end(self, goal_handle: ServerGoalHandle, job: Job) -> str:
