@@ -6,9 +6,10 @@ check every activation gets (`g2p.safety.check_activation_sequence` on the row).
 call by call, with nothing else running in the process: the map's numpy forward pass on one row, the
 feedback law, the delay queue. No MuJoCo, no torch, no ROS: it runs on the Pi as it is.
 
-The map is built from arrays (seeded weights, the paper's 15 hidden units by default; the cost does not
-depend on the values); the trajectory is 20 cycles of a 10-spoke limit cycle (1600 ticks), fed samples
-whose angles and velocities are the desired ones plus a fixed error, so that every term of the law works.
+The map is `g2p.inverse_map.random_map` (seeded weights, the paper's 15 hidden units by default; the
+cost does not depend on the values); the trajectory is 20 cycles of a 10-spoke limit cycle (1600 ticks),
+fed samples whose angles and velocities are the desired ones plus a fixed error, so that every term of the
+law works.
 
 Run:  PYTHONPATH=src python benchmarks/bench_rig_loop_cost.py [--trajectories 20] [--hidden 15]
       [--delay-ticks 0]
@@ -22,31 +23,11 @@ import time
 
 import numpy as np
 
-from g2p.inverse_map import FORMAT_VERSION, InverseMap
+from g2p.inverse_map import random_map
 from g2p.learning.limit_cycle import LimitCycleConfig, attempt_kinematics
 from g2p.plant import NOMINAL_TICK_HZ, TickSample
 from g2p.rig.closed_loop import FeedbackConfig, Trajectory, TrajectoryTracker
-from g2p.safety import BASELINE_ACTIVATION, check_activation_sequence
-
-
-def bench_map(hidden: int, seed: int = 0) -> InverseMap:
-    """A map of `hidden` tanh units from seeded arrays, normalized for the limit-cycle workspace."""
-    rng = np.random.default_rng(seed)
-    return InverseMap.from_arrays(
-        {
-            "format_version": np.array([float(FORMAT_VERSION)]),
-            "w_hidden": rng.normal(0.0, 1.0, (hidden, 6)),
-            "b_hidden": rng.normal(0.0, 0.5, hidden),
-            "w_out": rng.normal(0.0, 0.7, (3, hidden)),
-            "b_out": np.zeros(3),
-            "x_offset": np.array([0.0, -0.6, 0.0, 0.0, 0.0, 0.0]),
-            "x_scale": np.array([0.6, 0.6, 5.0, 5.0, 50.0, 50.0]),
-            "y_offset": np.full(3, 0.575),
-            "y_scale": np.full(3, 0.425),
-            "activation_range": np.array([BASELINE_ACTIVATION, 1.0]),
-        },
-        source="benchmark map",
-    )
+from g2p.safety import check_activation_sequence
 
 
 def samples_for(desired: np.ndarray) -> list[TickSample]:
@@ -100,7 +81,9 @@ def main() -> None:
         velocity_gain=(3.0, 3.0),
         delay_ticks=args.delay_ticks,
     )
-    trajectory = Trajectory(desired, bench_map(args.hidden), feedback, lead_ticks=3)
+    trajectory = Trajectory(
+        desired, random_map(np.random.default_rng(0), args.hidden), feedback, lead_ticks=3
+    )
     samples = samples_for(desired)
     print(
         f"{platform.machine()} {platform.python_implementation()} {platform.python_version()}, "

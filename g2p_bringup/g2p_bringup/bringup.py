@@ -19,6 +19,8 @@ runs over UDP on the named interface only.
 from __future__ import annotations
 
 import argparse
+import importlib
+import importlib.util
 import os
 import signal
 import subprocess
@@ -44,6 +46,7 @@ from g2p_bringup.dds import (
     two_host_environment,
 )
 from g2p_bringup.graph import HOSTS, Graph, GraphError, NodeSpec, load_graph
+from g2p_ros.params import RCLPY_PARAMETERS
 from g2p_ros.signals import init_with_stop_event
 
 STOP_TIMEOUT_S = 20.0
@@ -67,7 +70,8 @@ def _parse(argv: list[str]) -> argparse.Namespace:
         action="append",
         default=[],
         metavar="NODE.PARAM=VALUE",
-        help="override a node's parameter; VALUE is YAML (write floats as 1.0)",
+        help="override a node's parameter (one it has: a misspelt name is refused); VALUE is YAML (write "
+        "floats as 1.0)",
     )
     parser.add_argument("--no-report", action="store_true", help="do not write the run's report")
     parser.add_argument(
@@ -102,6 +106,22 @@ def _overrides(settings: list[str]) -> dict[str, dict[str, Any]]:
             raise GraphError(f"--set {item!r}: expected NODE.PARAM=VALUE")
         out.setdefault(node, {})[param] = yaml.safe_load(value)
     return out
+
+
+def node_parameters(spec: NodeSpec) -> frozenset[str] | None:
+    """Every parameter the node's executable declares, without starting it; None for another project's.
+
+    This project's executable `<package> <executable>` is the module `<package>.<executable>`, whose
+    `node_parameters()` lists its node's parameters (g2p_ros.params.parameter_names: the names
+    declare_config gives its configuration's fields). Imported only for a node that has overrides.
+    """
+    module = f"{spec.package}.{spec.executable}"
+    try:
+        found = importlib.util.find_spec(module)
+    except ModuleNotFoundError:  # no such package
+        found = None
+    listing = getattr(importlib.import_module(module), "node_parameters", None) if found else None
+    return None if listing is None else frozenset([*listing(), *RCLPY_PARAMETERS])
 
 
 def _node_environment(profile_dir: Path, dds_interface: str = "") -> dict[str, str]:
@@ -213,6 +233,7 @@ def main(args: list[str] | None = None) -> None:
             _overrides(options.set),
             options.host,
             frozenset({"viewer"}) if options.view else frozenset(),
+            node_parameters,  # a misspelt --set is refused before any node starts
         )
         log_dir = Path("log") / "runs" / run_id
         log_dir.mkdir(parents=True, exist_ok=True)

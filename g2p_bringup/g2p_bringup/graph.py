@@ -6,6 +6,8 @@ launch file for full ROS 2 installs (launch/g2p.launch.py). This module only rea
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -92,6 +94,7 @@ def load_graph(
     overrides: dict[str, dict[str, Any]] | None = None,
     host: str | None = None,
     optional: frozenset[str] = frozenset(),
+    parameters: Callable[[NodeSpec], Collection[str] | None] | None = None,
 ) -> Graph:
     """Read a graph description and resolve it.
 
@@ -102,10 +105,13 @@ def load_graph(
         overrides: extra parameters per node name ("rig" addresses the rig), applied last.
         host: only the nodes of this host (one of HOSTS); every node when None (one host).
         optional: names of the optional nodes to start too (e.g. {"viewer"}).
+        parameters: every parameter a node's executable declares, None when unknown; each of `overrides`
+            must name one of them (checked for the nodes of every host).
 
     Raises:
         GraphError: the file is unreadable or invalid, the rig or host is unknown, an optional node asked
-            for is not an optional node of the file, or a placeholder has no value.
+            for is not an optional node of the file, a placeholder has no value, or an override names a
+            parameter its node does not have (the message names the nearest ones).
     """
     if host is not None and host not in HOSTS:
         raise GraphError(f"unknown host {host!r}; choose one of {list(HOSTS)}")
@@ -125,7 +131,7 @@ def load_graph(
     sim_time = bool(rig_entry.get("use_sim_time", False))
     entries = [("rig", {"name": rig_entry.get("name", rig_entry.get("executable")), **rig_entry})]
     entries += [(str(e.get("name")), e) for e in doc.get("nodes", [])]
-    nodes = []
+    nodes: list[NodeSpec] = []
     for key, entry in entries:
         where = f"{path}: node {key!r}"
         try:
@@ -165,9 +171,32 @@ def load_graph(
         hint = [n for n in sorted(unknown) if n in known_optional]
         why = f" (start {hint} with it: bringup --view)" if hint else ""
         raise GraphError(f"{path}: overrides for unknown nodes {sorted(unknown)}{why}")
+    if parameters is not None:
+        for key, spec in [("rig", nodes[0]), *((n.name, n) for n in nodes[1:])]:
+            _check_overrides(key, spec, extra.get(key, {}), parameters)
     if host is not None:
         nodes = [n for n in nodes if n.host == host]
     return Graph(namespace, tuple(nodes))
+
+
+def _check_overrides(
+    key: str,
+    spec: NodeSpec,
+    overrides: dict[str, Any],
+    parameters: Callable[[NodeSpec], Collection[str] | None],
+) -> None:
+    """Raise GraphError for the first of `overrides` (of the node addressed as `key`) naming no parameter."""
+    known = parameters(spec) if overrides else None
+    if known is None:
+        return
+    for name in overrides:
+        if name not in known:
+            nearest = difflib.get_close_matches(name, list(known), n=3)
+            hint = f"; nearest: {', '.join(f'{key}.{n}' for n in nearest)}" if nearest else ""
+            raise GraphError(
+                f"override {key}.{name}: node {key!r} ({spec.package} {spec.executable}) has no parameter "
+                f"{name!r}{hint}"
+            )
 
 
 def _substitute(value: Any, subs: dict[str, str], where: str) -> Any:

@@ -17,7 +17,7 @@ from rclpy.node import Node
 from g2p.rig import DEFAULT_NAMESPACE, RigError
 from g2p.rig.tendon_check import TendonCheckConfig, check_tendons
 from g2p.validation import ConfigError
-from g2p_ros.params import declare_config, report_invalid_parameter
+from g2p_ros.params import declare_config, refuse_undeclared_overrides, report_invalid_parameter
 from g2p_ros.rig_client import RigClient
 from g2p_ros.spinner import BackgroundSpinner, MultiThreadedExecutor
 
@@ -34,6 +34,7 @@ def main(args: list[str] | None = None) -> None:
     code = 2
     try:
         config = declare_config(node, TendonCheckConfig)
+        refuse_undeclared_overrides(node)
         client = RigClient(node, server_timeout_s=30.0)
         spinner.start()
         report = check_tendons(client, config)

@@ -19,19 +19,18 @@ import threading
 import time
 from typing import NoReturn
 
-import rclpy
 from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
+from rclpy.executors import Executor
 from rclpy.parameter import Parameter
 from rclpy.utilities import remove_ros_args
 
 from g2p.rig.closed_loop import ControlMode
-from g2p.validation import ConfigError
 from g2p_interfaces.action import Learn
 from g2p_learner.learner_node import LearnerNode
+from g2p_learner.learner_node import node_parameters as node_parameters  # bringup reads it here
 from g2p_ros.contract import ServerWatch, action_name, wait_all
-from g2p_ros.params import report_invalid_parameter
-from g2p_ros.signals import init_with_stop_event
+from g2p_ros.executable import run_node
 from g2p_ros.spinner import BackgroundSpinner, MultiThreadedExecutor, wait_for_future
 
 # While the rig or the recorder is not on the graph yet, how often to say so (s).
@@ -155,48 +154,63 @@ def _run_goal(client: ActionClient, goal: Learn.Goal, stop: threading.Event, thr
     return 0 if ok else 1
 
 
+class _Learn:
+    """What `learn` does with its node: spin it in the background, send it one goal (or serve), stop it.
+
+    Args:
+        options: the command line.
+    """
+
+    def __init__(self, options: argparse.Namespace) -> None:
+        self._options = options
+        self._client: ActionClient | None = None
+        self._spinner: BackgroundSpinner | None = None
+        # Torch takes a second or more to import and is needed from the first fit on: imported while the
+        # graph is discovered and settles, rather than before the node exists (a stop meanwhile: _exit_now).
+        self.warm_up = threading.Thread(target=importlib.import_module, args=("g2p.inverse_map.training",))
+
+    def make_node(self) -> LearnerNode:
+        """The learner node, with `--control` as its `learner.control` parameter."""
+        control = self._options.control
+        return LearnerNode([] if control is None else [Parameter("learner.control", value=control)])
+
+    def run(self, node: LearnerNode, executor: Executor, stop: threading.Event) -> int:
+        """Spin in the background; run one learn goal until it ends or `stop` (or serve until `stop`)."""
+        # Before spinning starts: rclpy's ActionClient joins the node half-built (ros2/rclpy#1589).
+        self._client = None if self._options.serve else ActionClient(node, Learn, action_name(node, "learn"))
+        self._spinner = BackgroundSpinner(executor).start()
+        self.warm_up.start()
+        if self._client is None:
+            stop.wait()
+            return 0
+        goal = Learn.Goal(dataset_bag=self._options.dataset_bag, resume_bag=self._options.resume)
+        return run_learning(node, self._client, goal, stop)
+
+    def stop(self, node: LearnerNode) -> None:
+        """End the goals while the executor still spins (cancels reach the rig), flush, stop spinning."""
+        node.stop_goals(timeout_s=10.0)
+        if not node.flush_events(timeout_s=EVENT_FLUSH_TIMEOUT_S):  # the recorder may be remote
+            print("learn: the recorder did not acknowledge the last events", file=sys.stderr)
+        if self._spinner is not None:
+            self._spinner.stop()
+        if self._client is not None:
+            self._client.destroy()
+
+
 def main(args: list[str] | None = None) -> None:
     """Entry point of `ros2 run g2p_learner learn`."""
     argv = sys.argv if args is None else args
-    options = _parse(argv)
-    stop = init_with_stop_event(argv)  # a signal cancels the goal on the rig while the executor spins
-    node = None
-    client = None
-    code = 0
-    spinner = None
-    # Torch takes a second or more to import and is needed from the first fit on: imported while the
-    # graph is discovered and settles, rather than before the node exists (a stop meanwhile: _exit_now).
-    warm_up = threading.Thread(target=importlib.import_module, args=("g2p.inverse_map.training",))
-    try:
-        overrides = [] if options.control is None else [Parameter("learner.control", value=options.control)]
-        node = LearnerNode(overrides)
-        # Before spinning starts: rclpy's ActionClient joins the node half-built (ros2/rclpy#1589).
-        client = None if options.serve else ActionClient(node, Learn, action_name(node, "learn"))
-        executor = MultiThreadedExecutor(num_threads=4)
-        executor.add_node(node)
-        spinner = BackgroundSpinner(executor).start()
-        warm_up.start()
-        if client is None:
-            stop.wait()
-        else:
-            goal = Learn.Goal(dataset_bag=options.dataset_bag, resume_bag=options.resume)
-            code = run_learning(node, client, goal, stop)
-    except ConfigError as err:
-        code = report_invalid_parameter("learn", err)
-    finally:
-        if node is not None:
-            node.stop_goals(timeout_s=10.0)  # while the executor still spins: cancels reach the rig
-            if not node.flush_events(timeout_s=EVENT_FLUSH_TIMEOUT_S):  # the recorder may be remote
-                print("learn: the recorder did not acknowledge the last events", file=sys.stderr)
-        if spinner is not None:
-            spinner.stop()
-        if client is not None:
-            client.destroy()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-        if warm_up.is_alive():
-            _exit_now(code)
+    learn = _Learn(_parse(argv))
+    code = run_node(
+        "learn",
+        learn.make_node,
+        argv,
+        executor=lambda: MultiThreadedExecutor(num_threads=4),
+        run=learn.run,
+        stop_node=learn.stop,
+    )
+    if learn.warm_up.is_alive():
+        _exit_now(code)
     sys.exit(code)
 
 

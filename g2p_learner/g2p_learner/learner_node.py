@@ -22,8 +22,8 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from g2p import run_events
 from g2p.inverse_map import FitCancelled
+from g2p.learning import run_events
 from g2p.learning.experiments import AttemptReport, TrackingReport, TrajectoryRefinement, treadmill_result
 from g2p.learning.learner import LearnerConfig
 from g2p.learning.limit_cycle import LimitCycleConfig
@@ -37,8 +37,19 @@ from g2p_learner.recorder_link import RecorderLink
 from g2p_learner.run_publisher import RunPublisher
 from g2p_learner.session import LearningSession, Step
 from g2p_ros.contract import action_name, wait_all
-from g2p_ros.params import config_as_dict, declare_config, publish_config
+from g2p_ros.params import config_as_dict, declare_config, parameter_names, publish_config
 from g2p_ros.rig_client import RigClient
+
+# The search's fields the node sets from the cycle's (LearnerNodeConfig.search_config), not parameters.
+_SEARCH_FROM_CYCLE = ("n_features", "feature_low", "feature_high")
+
+
+def node_parameters() -> list[str]:
+    """The parameters LearnerNode declares besides rclpy's (bringup checks its `--set` against them)."""
+    return [
+        *parameter_names(LearnerNodeConfig, exclude=("search",)),
+        *parameter_names(SearchConfig, "search.", exclude=_SEARCH_FROM_CYCLE),
+    ]
 
 
 class LearnerNode(Node):
@@ -46,13 +57,12 @@ class LearnerNode(Node):
 
     def __init__(self, parameter_overrides: list[Parameter] | None = None) -> None:
         super().__init__("learner", namespace=DEFAULT_NAMESPACE, parameter_overrides=parameter_overrides)
-        search_fields = ("n_features", "feature_low", "feature_high")
         base = declare_config(self, LearnerNodeConfig, exclude=("learner", "cycle", "search"))
         self.config = replace(
             base,
             learner=declare_config(self, LearnerConfig, "learner."),
             cycle=declare_config(self, LimitCycleConfig, "cycle."),
-            search=declare_config(self, SearchConfig, "search.", exclude=search_fields),
+            search=declare_config(self, SearchConfig, "search.", exclude=_SEARCH_FROM_CYCLE),
         )
         cfg = self.config
         # A reset waited for while the rig is lost must not outlast the limit (it blocks until answered).

@@ -12,15 +12,15 @@ from __future__ import annotations
 
 import importlib
 import sys
+import threading
 import time
 from collections.abc import Callable
 from datetime import datetime, timezone
 from typing import Any
 
 import numpy as np
-import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import Executor, ExternalShutdownException
+from rclpy.executors import Executor
 
 try:  # rclpy's C++ events executor (Kilted and later); Jazzy has only the Python executors.
     from rclpy.experimental import EventsExecutor as _FastExecutor
@@ -35,9 +35,14 @@ from g2p.bags import BagError, InterfaceError, InterfaceLibrary, TopicSpec, Type
 from g2p.bags.config import RecorderConfig
 from g2p.bags.qos import EndpointQos, Qos, make_qos, recording_qos
 from g2p.bags.writer import create_run_bag
-from g2p.validation import ConfigError
-from g2p_ros.params import config_as_dict, declare_config, publish_config
-from g2p_ros.signals import init_with_stop_event, spin_until_stopped
+from g2p_ros.executable import run_node, spin
+from g2p_ros.params import (
+    config_as_dict,
+    declare_config,
+    parameter_names,
+    publish_config,
+    refuse_undeclared_overrides,
+)
 
 
 def message_class(msgtype: str) -> Any:
@@ -93,6 +98,7 @@ class RecorderNode(Node):
     def __init__(self) -> None:
         super().__init__("recorder")
         self.config = declare_config(self, RecorderConfig)
+        refuse_undeclared_overrides(self)  # before the bag exists: a refused recorder leaves none behind
         self._selection = self.config.selection()
         self._types = TypeRegistry(InterfaceLibrary(ament_share_dirs()))
         self.bag = create_run_bag(
@@ -244,30 +250,36 @@ class RecorderNode(Node):
         super().destroy_node()
 
 
+def node_parameters() -> list[str]:
+    """The parameters RecorderNode declares besides rclpy's (bringup checks its `--set` against them)."""
+    return parameter_names(RecorderConfig)
+
+
+def _record(node: RecorderNode, executor: Executor, stop: threading.Event) -> int:
+    """Record until SIGINT or SIGTERM, then what the graph's other publishers still send."""
+    spin(node, executor, stop)
+    node.drain(executor, node.config.drain_timeout_s)
+    return 0
+
+
 def main(args: list[str] | None = None) -> None:
     """Record until SIGINT or SIGTERM, then write what was received and finalize the bag.
 
-    SIGINT and SIGTERM only set a flag, so the bag is never closed in the middle of a write.
+    SIGINT and SIGTERM only set a flag, so the bag is never closed in the middle of a write. Exit status 2:
+    an invalid parameter, or a bag that cannot be written.
     """
-    stop = init_with_stop_event(args)
-    node = None
-    try:
-        node = RecorderNode()
-        # The Python executors cannot keep up with fast simulation (docs/BAGS.md); they are enough for the
-        # rig's 78 Hz on Jazzy, where the events executor does not exist.
-        executor = _FastExecutor()
-        executor.add_node(node)
-        spin_until_stopped(executor, stop)
-        node.drain(executor, node.config.drain_timeout_s)
-    except (ConfigError, BagError) as err:
-        print(f"record: error: {err}", file=sys.stderr)
-        sys.exit(2)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    sys.exit(
+        run_node(
+            "record",
+            RecorderNode,
+            args,
+            # The Python executors cannot keep up with fast simulation (docs/BAGS.md); they are enough for
+            # the rig's 78 Hz on Jazzy, where the events executor does not exist.
+            executor=_FastExecutor,
+            run=_record,
+            errors={BagError: ("error", 2)},
+        )
+    )
 
 
 if __name__ == "__main__":

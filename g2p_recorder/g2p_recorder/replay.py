@@ -15,10 +15,9 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-import rclpy
 from builtin_interfaces.msg import Time
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rosgraph_msgs.msg import Clock
@@ -28,7 +27,7 @@ from g2p.bags.replay_plan import ReplayOptions, ReplayTopic, Timeline, parse_rem
 from g2p.validation import ConfigError
 from g2p_recorder.record import message_class, qos_profile
 from g2p_ros import contract
-from g2p_ros.signals import init_with_stop_event
+from g2p_ros.executable import run_node
 
 # A message due less than this ahead is published at once rather than slept for (s).
 _EARLY_S = 0.0005
@@ -41,16 +40,17 @@ class ReplayNode(Node):
 
     Args:
         reader: the open bag.
+        topics: what to publish, as what (`plan_topics` of the bag and the options).
         options: rate, topics, remaps, loop, clock.
     """
 
-    def __init__(self, reader: BagReader, options: ReplayOptions) -> None:
+    def __init__(self, reader: BagReader, topics: list[ReplayTopic], options: ReplayOptions) -> None:
         super().__init__("replay")
         self._reader = reader
         self._options = options
         self.plan: list[ReplayTopic] = []
         self._outputs: dict[str, Publisher] = {}
-        for t in plan_topics(reader.topics, options):
+        for t in topics:
             try:
                 cls = message_class(t.msgtype)
             except (ImportError, ValueError) as err:
@@ -199,30 +199,33 @@ def split_ros_args(argv: Sequence[str]) -> tuple[list[str], list[str]]:
     return ours, ros
 
 
+def _play(node: ReplayNode, executor: Executor, stop: threading.Event) -> int:
+    """Play the bag until it ends (or forever with --loop), SIGINT or SIGTERM."""
+    node.play(stop)
+    node.get_logger().info(f"published {node.published} messages")
+    return 0
+
+
 def main(args: list[str] | None = None) -> None:
     """Replay a bag until it ends (or forever with --loop), SIGINT or SIGTERM; exit 2 on a bad bag."""
     argv = list(sys.argv if args is None else args)
     ours, ros = split_ros_args(argv[1:])
     bag, options = parse_arguments(ours)
-    stop = init_with_stop_event([argv[0], *ros])
-    node = None
-    reader = None
     try:
-        reader = BagReader(bag)
-        node = ReplayNode(reader, options)
-        node.play(stop)
-        node.get_logger().info(f"published {node.published} messages")
-    except (BagError, ConfigError) as err:
+        with BagReader(bag) as reader:
+            # The options checked against the bag before ROS starts.
+            topics = plan_topics(reader.topics, options)
+            code = run_node(
+                "replay",
+                lambda: ReplayNode(reader, topics, options),
+                [argv[0], *ros],
+                run=_play,
+                errors={BagError: ("error", 2)},  # damaged data found while playing
+            )
+    except (BagError, ConfigError) as err:  # unreadable, or without the topics the options name
         print(f"replay: error: {err}", file=sys.stderr)
-        sys.exit(2)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        if reader is not None:
-            reader.close()
-        rclpy.try_shutdown()
+        code = 2
+    sys.exit(code)
 
 
 if __name__ == "__main__":

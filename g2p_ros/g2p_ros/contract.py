@@ -24,62 +24,38 @@ RIG_SAMPLE_TOPICS = (JOINT_STATES, TREADMILL, MOTOR_POWER, APPLIED_ACTIVATION)
 # What the rig's limits did each tick (g2p_interfaces/RigLimits), with SAMPLE_QOS, beside the samples.
 RIG_LIMITS = "rig_limits"
 
+
+def qos(depth: int, *, reliable: bool = True, latched: bool = False) -> QoSProfile:
+    """Keep the last `depth` messages; reliable or best effort; latched (transient local) or volatile."""
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+    )
+
+
 # Rig samples: reliable, so a recorder loses nothing. A reliable writer drops samples its readers have not
 # acknowledged yet once its history is full, and acknowledgements come at heartbeat pace: 10,000 samples
 # (2 min at 78 Hz, 4 s of fast simulation at 30x) cover a reader's longest pauses (docs/BAGS.md).
-SAMPLE_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=10000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
+SAMPLE_QOS = qos(10000)
 # Commands: reliable; only the newest matters to the rig.
-COMMAND_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=10,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
+COMMAND_QOS = qos(10)
 # The learner's topics, relative to the learner node (`~/events`, `~/inverse_map`): its run's events and
 # every inverse map it fitted.
 LEARNER_EVENTS = "events"
 LEARNER_INVERSE_MAP = "inverse_map"
 # Events and maps must reach the recorder whole, even one that joins late (and a viewer started late sees
 # the run so far): transient local, with a history longer than a run's events.
-EVENT_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-MAP_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+EVENT_QOS = qos(1000, latched=True)
+MAP_QOS = qos(100, latched=True)
 # robot_description as robot_state_publisher publishes it: one message, kept for late subscribers.
-DESCRIPTION_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+DESCRIPTION_QOS = qos(1, latched=True)
 # /diagnostics: reliable, depth 100 (100 s of rig time, a few seconds of fast simulation): a recorder
 # lagging a fast simulation loses none.
-DIAGNOSTICS_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
+DIAGNOSTICS_QOS = qos(100)
 # /clock as rosbag2 and Gazebo publish it: any time source subscription (best effort) accepts it.
-CLOCK_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.BEST_EFFORT,
-    durability=DurabilityPolicy.VOLATILE,
-)
+CLOCK_QOS = qos(1, reliable=False)
 
 
 def action_name(node: Node, name: str) -> str:

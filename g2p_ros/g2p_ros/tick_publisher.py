@@ -93,12 +93,12 @@ class TickPublisher:
         subscriber could match, it would reach each subscriber on some topics and not others.
         """
         self._stamp_offset_s = 0.0 if self._sim_time else time.time() - rest.t_s
-        self.last_stamp_ns = self.stamp_ns(rest.t_s)
+        self.last_stamp_ns = self.tick_stamp_ns(rest.t_s)
         self._publish_clock()
         self._thread = threading.Thread(target=self._run, name="rig_publisher", daemon=True)
         self._thread.start()
 
-    def stamp_ns(self, t_s: float) -> int:
+    def tick_stamp_ns(self, t_s: float) -> int:
         """The stamp of a tick that ended at `t_s` on the plant's clock (ns)."""
         return stamp_ns(t_s + self._stamp_offset_s)
 
@@ -173,7 +173,7 @@ class TickPublisher:
             self._pub_clock.publish(Clock(clock=time_from_ns(self.last_stamp_ns)))
 
     def _publish(self, sample: TickSample, clock: bool) -> None:
-        ns = self.stamp_ns(sample.t_s)
+        ns = self.tick_stamp_ns(sample.t_s)
         self.last_stamp_ns = ns
         joints, treadmill, power, applied = self._serializer.serialize(sample, ns)
         if self._pub_clock is not None and clock:

@@ -6,8 +6,6 @@ import enum
 import sys
 from dataclasses import dataclass
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from g2p.rig import DEFAULT_NAMESPACE
@@ -16,10 +14,16 @@ from g2p.sim import MujocoLeg, MujocoLegConfig
 from g2p.sim.model import ModelError
 from g2p.sim.model_description import leg_description
 from g2p.validation import ConfigError
-from g2p_ros.params import config_as_dict, declare_config, publish_config, report_invalid_parameter
+from g2p_ros.executable import run_node
+from g2p_ros.params import (
+    config_as_dict,
+    declare_config,
+    parameter_names,
+    publish_config,
+    refuse_undeclared_overrides,
+)
 from g2p_ros.rig_server import RigServer, RigServerConfig
 from g2p_ros.robot_description import publish_robot_description
-from g2p_ros.signals import init_with_stop_event, spin_until_stopped
 from g2p_ros.spinner import MultiThreadedExecutor
 
 
@@ -52,8 +56,12 @@ class SimNode(Node):
         self.config = declare_config(self, SimConfig)
         leg_config = declare_config(self, MujocoLegConfig, "leg.")
         server_config = declare_config(self, RigServerConfig, "rig.")
+        refuse_undeclared_overrides(self)  # before the rig ticks: a refused simulator publishes nothing
         fast = self.config.time_mode is TimeMode.FAST
-        leg = MujocoLeg(leg_config)
+        try:
+            leg = MujocoLeg(leg_config)
+        except ModelError as err:  # the message names the file and what it lacks
+            raise ConfigError(f"leg.model_path: {err}") from err
         self.rig = RigServer(
             self,
             leg,
@@ -90,25 +98,30 @@ class SimNode(Node):
         super().destroy_node()
 
 
+def node_parameters() -> list[str]:
+    """The parameters SimNode declares besides rclpy's (bringup checks its `--set` overrides against them)."""
+    return [
+        *parameter_names(SimConfig),
+        *parameter_names(MujocoLegConfig, "leg."),
+        *parameter_names(RigServerConfig, "rig."),
+    ]
+
+
 def main(args: list[str] | None = None) -> None:
-    """Entry point of `ros2 run g2p_sim sim`."""
-    stop = init_with_stop_event(args)  # the context stays valid until the rig has stopped and flushed
-    node = None
-    executor = MultiThreadedExecutor(num_threads=3)
-    try:
-        node = SimNode()
-        executor.add_node(node)
-        spin_until_stopped(executor, stop)
-    except ConfigError as err:  # a bad leg.calibration file included
-        sys.exit(report_invalid_parameter("g2p_sim", err))
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.rig.stop()  # goals end, the final baseline tick goes out and is acknowledged
-            executor.shutdown()  # once its callbacks have returned: none uses a destroyed entity
-            node.destroy_node()
-        rclpy.try_shutdown()
+    """Entry point of `ros2 run g2p_sim sim`.
+
+    Exit status 2: an invalid parameter, a bad leg.calibration or leg.model_path file included.
+    """
+    sys.exit(
+        run_node(
+            "g2p_sim",
+            SimNode,
+            args,
+            executor=lambda: MultiThreadedExecutor(num_threads=3),
+            # Goals end, the final baseline tick goes out and is acknowledged, while the context is valid.
+            stop_node=lambda node: node.rig.stop(),
+        )
+    )
 
 
 if __name__ == "__main__":

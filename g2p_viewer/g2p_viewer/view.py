@@ -22,9 +22,8 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -40,11 +39,12 @@ from g2p.viewer.server import LegViewer, ViewerConfig
 from g2p_interfaces.msg import LearnerEvent, Treadmill
 from g2p_ros import contract
 from g2p_ros.contract import DESCRIPTION_QOS, JOINT_STATES, ROBOT_DESCRIPTION, TREADMILL
-from g2p_ros.params import declare_config
-from g2p_ros.signals import init_with_stop_event, spin_until_stopped
+from g2p_ros.executable import run_node
+from g2p_ros.params import declare_config, parameter_names
+from g2p_ros.signals import init_with_stop_event
 
 # The rig's samples, best effort: the viewer may drop ticks, the rig never waits for it.
-VIEW_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
+VIEW_QOS = contract.qos(100, reliable=False)
 
 
 class ViewerNode(Node):
@@ -53,7 +53,10 @@ class ViewerNode(Node):
     def __init__(self, learner_node: str = "learner") -> None:
         super().__init__("viewer", namespace=DEFAULT_NAMESPACE)
         config = declare_config(self, ViewerConfig)
-        self.declare_parameter("learner_node", learner_node)
+        described = ParameterDescriptor(
+            description="the learner node whose ~/events are shown", read_only=True
+        )
+        self.declare_parameter("learner_node", learner_node, described)
         learner = str(self.get_parameter("learner_node").value)
         self.viewer = LegViewer(packaged_leg_description(), config)
         self.create_subscription(JointState, JOINT_STATES, self._joint_state, VIEW_QOS)
@@ -115,37 +118,38 @@ def _parse(argv: list[str]) -> argparse.Namespace:
     return parser.parse_args(remove_ros_args(argv)[1:])
 
 
+def node_parameters() -> list[str]:
+    """The parameters ViewerNode declares besides rclpy's (bringup checks its `--set` against them)."""
+    return [*parameter_names(ViewerConfig), "learner_node"]
+
+
 def main(args: list[str] | None = None) -> None:
     """Entry point of `ros2 run g2p_viewer view`."""
     argv = sys.argv if args is None else args
     options = _parse(argv)
+    if options.bag is None:
+        sys.exit(run_node("view", ViewerNode, argv, errors={RuntimeError: ("cannot serve", 1)}))
+    sys.exit(_replay_main(options, argv))
+
+
+def _replay_main(options: argparse.Namespace, argv: list[str]) -> int:
+    """`view bags/<run>`: the replay's exit status (no node: rclpy only for its signal handling)."""
     stop = init_with_stop_event(argv)
-    node = None
-    code = 0
     try:
-        if options.bag is not None:
-            code = _replay(options.bag, options.rate, ViewerConfig(options.host, options.port), stop)
-        else:
-            node = ViewerNode()
-            executor = SingleThreadedExecutor()
-            executor.add_node(node)
-            spin_until_stopped(executor, stop)
+        return _replay(options.bag, options.rate, ViewerConfig(options.host, options.port), stop)
     except (ConfigError, ValueError) as err:
         print(f"view: {err}", file=sys.stderr)
-        code = 2
+        return 2
     except BagError as err:
         print(f"view: error: {err}", file=sys.stderr)
-        code = 2
+        return 2
     except RuntimeError as err:  # the server cannot listen
         print(f"view: cannot serve: {err}", file=sys.stderr)
-        code = 1
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        return 1
+    except KeyboardInterrupt:
+        return 0
     finally:
-        if node is not None:
-            node.destroy_node()
         rclpy.try_shutdown()
-    sys.exit(code)
 
 
 if __name__ == "__main__":

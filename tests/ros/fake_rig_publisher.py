@@ -1,9 +1,10 @@
-"""A fake rig for the recorder and replay tests, run as a process: `python fake_rig_publisher.py publish ...`.
+"""A fake rig for the recorder and replay tests, run as a process from the repository's root:
+`python -m tests.ros.fake_rig_publisher publish ...`.
 
 It publishes the rig contract's topics with their real message types and QoS (plus /clock, /diagnostics,
 the learner's events and inverse maps, and a latched `~/config`), one deterministic tick after another,
 so the tests can rebuild every published message and compare it field by field with the bag. It imports
-only installed packages, so it runs as a plain script.
+only installed packages.
 """
 
 from __future__ import annotations
@@ -19,7 +20,6 @@ import rclpy
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.duration import Duration
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
@@ -33,19 +33,13 @@ from g2p_interfaces.msg import (
     Treadmill,
 )
 from g2p_ros import contract
+from g2p_ros.params import CONFIG_QOS
 
 STAMP0_NS = 50 * 1_000_000_000
 TICK_NS = 12_820_513  # 78 Hz of rig time
 # Fast simulation: the rig's publishers need a history that covers the recorder's worst scheduling pause
 # on a loaded machine (contract.SAMPLE_QOS keeps 200 = 40 ms at 5000 ticks/s; see docs/BAGS.md).
 FAST_SIM_DEPTH = 10000
-EVENT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-LATCHED_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
 RIG_TOPICS = ["/leg/joint_states", "/leg/treadmill", "/leg/motor_power", "/leg/applied_activation"]
 RELIABLE_TOPICS = [*RIG_TOPICS, "/diagnostics", "/leg/learner/events", "/leg/learner/inverse_map"]
 CONFIG_TOPIC = "/leg/fake_rig/config"
@@ -132,24 +126,19 @@ def publish_main(argv: list[str]) -> None:
     ns = parser.parse_args(argv)
     rclpy.init()
     node = rclpy.create_node("fake_rig", namespace="/leg")
-    sample_qos = QoSProfile(
-        history=contract.SAMPLE_QOS.history,
-        depth=ns.depth,
-        reliability=contract.SAMPLE_QOS.reliability,
-        durability=contract.SAMPLE_QOS.durability,
-    )
+    sample_qos = contract.qos(ns.depth)  # SAMPLE_QOS's, with the test's depth
     types = {
         "/clock": (Clock, contract.CLOCK_QOS),
         "/diagnostics": (DiagnosticArray, contract.DIAGNOSTICS_QOS),
-        "/leg/learner/events": (LearnerEvent, EVENT_QOS),
-        "/leg/learner/inverse_map": (InverseMapWeights, LATCHED_QOS),
+        "/leg/learner/events": (LearnerEvent, contract.EVENT_QOS),
+        "/leg/learner/inverse_map": (InverseMapWeights, contract.MAP_QOS),
         "/leg/joint_states": (JointState, sample_qos),
         "/leg/treadmill": (Treadmill, sample_qos),
         "/leg/motor_power": (MotorPower, sample_qos),
         "/leg/applied_activation": (MotorActivation, sample_qos),
     }
     pubs = {topic: node.create_publisher(cls, topic, qos) for topic, (cls, qos) in types.items()}
-    config = node.create_publisher(String, "~/config", LATCHED_QOS)
+    config = node.create_publisher(String, "~/config", CONFIG_QOS)
     config.publish(String(data=json.dumps(CONFIG)))
     deadline = time.monotonic() + 60
     while any(pubs[t].get_subscription_count() == 0 for t in ns.wait_for) and time.monotonic() < deadline:
@@ -178,4 +167,6 @@ if __name__ == "__main__":
     if sys.argv[1:2] == ["publish"]:
         publish_main(sys.argv[2:])
     else:
-        sys.exit("usage: fake_rig_publisher.py publish --ticks N [--rate HZ] [--depth N] [--hold]")
+        sys.exit(
+            "usage: python -m tests.ros.fake_rig_publisher publish --ticks N [--rate HZ] [--depth N] [--hold]"
+        )

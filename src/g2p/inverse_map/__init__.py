@@ -58,6 +58,7 @@ __all__ = [
     "Normalization",
     "Optimizer",
     "StopReason",
+    "random_map",
 ]
 
 FORMAT_VERSION = 1
@@ -447,6 +448,37 @@ class InverseMap:
             result.stop_reason,
         )
         return self.last_report
+
+
+def random_map(rng: np.random.Generator, n_hidden: int = InverseMapConfig.n_hidden) -> InverseMap:
+    """A map ready to predict without training: random weights, normalized for the limit cycles' workspace.
+
+    For tests and benchmarks of what runs a map rather than of what it predicts (the rig's per-tick cost,
+    a trajectory goal's plumbing); the same generator state gives the same map. Weights: hidden (H, 6) from
+    N(0, 1), hidden biases (H,) from N(0, 0.5), outputs (3, H) from N(0, 0.7), output biases 0, drawn in
+    that order. Inputs are scaled from angles of 0 and -0.6 rad +- 0.6 rad, velocities of +- 5 rad/s and
+    accelerations of +- 50 rad/s^2; outputs onto the default activation range.
+
+    Args:
+        rng: source of the weights.
+        n_hidden: hidden tanh units (H).
+    """
+    low, high = InverseMapConfig.activation_low, InverseMapConfig.activation_high
+    return InverseMap.from_arrays(
+        {
+            "format_version": np.array([float(FORMAT_VERSION)]),
+            "w_hidden": rng.normal(0.0, 1.0, (n_hidden, N_INPUTS)),
+            "b_hidden": rng.normal(0.0, 0.5, n_hidden),
+            "w_out": rng.normal(0.0, 0.7, (N_OUTPUTS, n_hidden)),
+            "b_out": np.zeros(N_OUTPUTS),
+            "x_offset": np.array([0.0, -0.6, 0.0, 0.0, 0.0, 0.0]),
+            "x_scale": np.array([0.6, 0.6, 5.0, 5.0, 50.0, 50.0]),
+            "y_offset": np.full(N_OUTPUTS, (high + low) / 2.0),
+            "y_scale": np.full(N_OUTPUTS, (high - low) / 2.0),
+            "activation_range": np.array([low, high]),
+        },
+        source="random map",
+    )
 
 
 def _check_data(x: ArrayLike, y: ArrayLike, config: InverseMapConfig) -> tuple[FloatArray, FloatArray]:

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from ament_index_python.packages import get_package_share_directory
 
-from g2p.hardware_fake.buses import FakeRigConfig
+from g2p.hardware_fake.buses import FakeBusesConfig
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, TREADMILL_CARRIAGE_HEIGHT_M, MujocoLegConfig
 from g2p_bringup.graph import GraphError, load_graph
 
@@ -19,7 +19,7 @@ def carriage_height_m(rig: str) -> float:
     """The carriage height the rig of that name starts with (its parameters, else the config default)."""
     spec = load_graph(GRAPH, rig, SUBSTITUTIONS).nodes[0]
     if spec.parameters.get("fake_devices"):
-        return float(spec.parameters.get("fake.carriage_height_m", FakeRigConfig().carriage_height_m))
+        return float(spec.parameters.get("fake.carriage_height_m", FakeBusesConfig().carriage_height_m))
     return float(spec.parameters.get("leg.carriage_height_m", MujocoLegConfig().carriage_height_m))
 
 

@@ -34,9 +34,11 @@ from tests.ros.fake_rig_publisher import (
     TICK_NS,
     tick_messages,
 )
-from tests.ros.rosproc import executable
+from tests.ros.rosproc import ROOT, executable
 
-FAKE_RIG = Path(__file__).with_name("fake_rig_publisher.py")
+# Run as a module from the repository's root: as a script, its folder's test packages g2p_interfaces/ and
+# g2p_ros/ would hide the installed ones.
+FAKE_RIG = [sys.executable, "-m", "tests.ros.fake_rig_publisher"]
 
 # Test helpers -------------------------------------------------------------------------------------------
 
@@ -52,7 +54,9 @@ class Processes:
     def start(self, name: str, argv: list[str]) -> subprocess.Popen[str]:
         out = open(self.tmp_path / f"{name}.out", "w")
         self._logs.append(out)
-        proc = subprocess.Popen(argv, stdout=out, stderr=subprocess.STDOUT, text=True, env=os.environ.copy())
+        proc = subprocess.Popen(
+            argv, stdout=out, stderr=subprocess.STDOUT, text=True, env=os.environ.copy(), cwd=ROOT
+        )
         self.started.append(proc)
         return proc
 
@@ -84,8 +88,7 @@ def start_publisher(
     wait_for: list[str] | None = None,
 ) -> subprocess.Popen[str]:
     argv = [
-        sys.executable,
-        str(FAKE_RIG),
+        *FAKE_RIG,
         "publish",
         "--ticks",
         str(ticks),

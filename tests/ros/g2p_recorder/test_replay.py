@@ -26,7 +26,9 @@ from g2p.bags import BagReader
 from g2p_interfaces.msg import MotorActivation, Treadmill
 from tests.ros.rosproc import executable
 
-FAKE_RIG = Path(__file__).with_name("fake_rig_publisher.py")
+# Run as a module from the repository's root: as a script, its folder's test packages g2p_interfaces/ and
+# g2p_ros/ would hide the installed ones.
+FAKE_RIG = [sys.executable, "-m", "tests.ros.fake_rig_publisher"]
 TICKS = 600
 RECORD_RATE = 300.0  # ticks/s: the bag spans about 2 s
 SUBSCRIBER_QOS = QoSProfile(
@@ -59,7 +61,7 @@ def bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A bag recorded live from the fake rig by the `record` executable."""
     tmp = tmp_path_factory.mktemp("replay")
     rig = run_process(
-        [sys.executable, str(FAKE_RIG), "publish", "--ticks", str(TICKS), "--rate", str(RECORD_RATE)],
+        [*FAKE_RIG, "publish", "--ticks", str(TICKS), "--rate", str(RECORD_RATE)],
         tmp / "rig.out",
     )
     recorder = run_process(

@@ -1,4 +1,5 @@
-"""Every parameter every node declares is described (`ros2 param describe`), with its unit.
+"""Every parameter every node declares is described (`ros2 param describe`), with its unit, and is one
+bringup knows without starting the node.
 
 The nodes run as the installed executables; the test asks each one over its parameter services, as
 `ros2 param describe` does.
@@ -13,10 +14,11 @@ import pytest
 from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.srv import DescribeParameters, ListParameters
 
+from g2p_bringup.bringup import node_parameters
+from g2p_bringup.graph import NodeSpec
+from g2p_ros.params import RCLPY_PARAMETERS
 from tests.ros.rosproc import NodeProcess, RosPeer
 
-# rclpy's own parameters, which it declares for every node.
-RCLPY_PARAMETERS = {"use_sim_time", "start_type_description_service"}
 # A unit, or a word saying there is none, in parentheses: "(s)", "(mm of belt travel)", "(dimensionless)".
 UNIT = re.compile(
     r"\([^()]*\b(s|ms|Hz|mm|m|rad|rad/s|deg|N|N m|N/m|A|W|J|V|ohm|kg|mm/s|m/s|dimensionless|ticks?|samples?|"
@@ -48,6 +50,7 @@ NODES = {
     "learner": ("g2p_learner", "learn", []),
     "driver": ("g2p_driver", "driver", ["-p", "fake_devices:=true"]),
     "recorder": ("g2p_recorder", "record", []),
+    "viewer": ("g2p_viewer", "view", ["-p", "port:=0"]),
 }
 
 
@@ -71,3 +74,7 @@ def test_every_parameter_has_a_description_and_every_float_its_unit(node: str, t
     assert not undescribed, f"{node}: no description for {undescribed}"
     unitless = sorted(k for k, (kind, text) in ours.items() if kind in FLOAT_TYPES and not UNIT.search(text))
     assert not unitless, f"{node}: no unit in the description of {unitless}"
+    # What bringup checks a `--set` against, listed from the configurations without a node: the same names.
+    listed = node_parameters(NodeSpec(node, package, executable, "/leg"))
+    assert listed is not None
+    assert set(ours) == listed - set(RCLPY_PARAMETERS)

@@ -18,7 +18,7 @@ from std_msgs.msg import String
 
 from g2p.bags import BagReader
 from g2p.description.urdf import leg_urdf, packaged_leg_description, packaged_urdf_path, parse_leg_urdf
-from g2p.hardware_fake.buses import FakeRigConfig, fake_leg_config
+from g2p.hardware_fake.buses import FakeBusesConfig, fake_leg_config
 from g2p.sim import MujocoLegConfig
 from g2p.sim.config import TREADMILL_CARRIAGE_HEIGHT_M, packaged_model_path
 from g2p.sim.model_description import config_description
@@ -96,7 +96,7 @@ def test_the_driver_on_fake_devices_describes_its_mujoco_leg_before_any_transiti
         text = peer.subscribe_and_receive()
     finally:
         assert driver.stop() == 0, driver.log()
-    assert text == leg_urdf(config_description(fake_leg_config(FakeRigConfig(carriage_height_m=0.42))))
+    assert text == leg_urdf(config_description(fake_leg_config(FakeBusesConfig(carriage_height_m=0.42))))
     # The packaged leg at the treadmill height: the shipped URDF, to the byte.
     assert text == packaged_urdf_path().read_text()
 

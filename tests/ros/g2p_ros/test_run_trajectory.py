@@ -14,7 +14,7 @@ import pytest
 from action_msgs.msg import GoalStatus
 from std_srvs.srv import Trigger
 
-from g2p.inverse_map import InverseMap
+from g2p.inverse_map import random_map
 from g2p.learning.attempt import plan_attempt
 from g2p.learning.limit_cycle import LimitCycleConfig, attempt_kinematics
 from g2p.plant import NOMINAL_TICK_HZ, Recording, TickSample
@@ -47,32 +47,17 @@ FEEDBACK = FeedbackConfig(
 )
 
 
-def small_map(seed: int = 0, hidden: int = 8) -> InverseMap:
-    """A fitted-looking map from arrays (no training): seeded weights, the workspace's normalization."""
-    rng = np.random.default_rng(seed)
-    return InverseMap.from_arrays(
-        {
-            "format_version": np.array([1.0]),
-            "w_hidden": rng.normal(0.0, 1.0, (hidden, 6)),
-            "b_hidden": rng.normal(0.0, 0.5, hidden),
-            "w_out": rng.normal(0.0, 0.7, (3, hidden)),
-            "b_out": np.zeros(3),
-            "x_offset": np.array([0.0, -0.6, 0.0, 0.0, 0.0, 0.0]),
-            "x_scale": np.array([0.6, 0.6, 5.0, 5.0, 50.0, 50.0]),
-            "y_offset": np.full(3, 0.575),
-            "y_scale": np.full(3, 0.425),
-            "activation_range": np.array([BASELINE, 1.0]),
-        },
-        source="test map",
-    )
-
-
 def cycle(cycles: int) -> LimitCycleConfig:
     return LimitCycleConfig(n_cycles=cycles)
 
 
 def trajectory(cycles: int, feedback: FeedbackConfig, lead: int = LEAD) -> Trajectory:
-    return Trajectory(attempt_kinematics(FEATURES, cycle(cycles)), small_map(), feedback, lead)
+    return Trajectory(
+        attempt_kinematics(FEATURES, cycle(cycles)),
+        random_map(np.random.default_rng(0), n_hidden=8),
+        feedback,
+        lead,
+    )
 
 
 def sample(rec: Recording, k: int) -> TickSample:
@@ -90,7 +75,7 @@ def assert_tracker_decided(trajectory: Trajectory, rec: Recording, correction: n
 
 
 def test_map_weights_round_trip_bit_for_bit() -> None:
-    net = small_map(seed=5)
+    net = random_map(np.random.default_rng(5), n_hidden=8)
     arrays = net.to_arrays()
     named = map_weights_arrays(arrays)
     assert "format_version" in arrays and "format_version" not in [a.name for a in named]

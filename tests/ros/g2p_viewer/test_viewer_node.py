@@ -17,10 +17,9 @@ from g2p.bags.ticks import header_stamp_ns
 from g2p_interfaces.msg import LearnerEvent
 from g2p_ros import contract
 from tests.ros.rig_nodes import RigPeer, start_sim
-from tests.ros.rosproc import NodeProcess, wait_until
+from tests.ros.rosproc import ROOT, NodeProcess, wait_until
 from tests.viewer.foxglove_client import FoxgloveClient
 
-ROOT = Path(__file__).resolve().parents[2]
 SAMPLE = ROOT / "bags" / "samples" / "treadmill-60s-babbling"
 
 
