@@ -35,7 +35,6 @@ from setups import Setup, air_learner, treadmill
 from g2p.learning.attempt import AttemptOutcome, run_attempt
 from g2p.learning.experiments import random_features
 from g2p.learning.learner import LearnerConfig
-from g2p.learning.seeds import seed_streams
 from g2p.plant import NOMINAL_TICK_HZ
 from g2p.rig.closed_loop import ControlMode, FeedbackConfig
 from g2p.rl.sweep import JobFailure, ray_session, run_sweep
@@ -130,7 +129,7 @@ def _sweep_task(seed: int, delay_ticks: int, stage: str) -> dict[str, Any]:
     t0 = time.perf_counter()
     learner, rig, cycle = air_learner(seed, Setup())
     inverse_map = learner.frozen_map()
-    rng = seed_streams(seed).tracking
+    rng = learner.streams.tracking
     features = random_features(rng, cycle, 30)[:SWEEP_TRAJECTORIES]  # the generalization's training draw
     laws: list[FeedbackConfig | None] = []
     if stage == "coarse":
@@ -268,7 +267,7 @@ def air(seed: int) -> dict[str, Any]:
     t0 = time.perf_counter()
     learner, rig, cycle = air_learner(seed, Setup())
     babbling_map = learner.frozen_map()
-    rng = seed_streams(seed).tracking
+    rng = learner.streams.tracking
     train, test = random_features(rng, cycle, 30), random_features(rng, cycle, 30)  # as bench_learning
     train_rmse = [learner.attempt(rig, f, cycle, True)[0].tracking.rmse_rad for f in train]  # open loop
     maps = {"babbling": babbling_map, "refined": learner.frozen_map()}

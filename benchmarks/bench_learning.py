@@ -41,7 +41,6 @@ from g2p.inverse_map import InverseMap
 from g2p.learning.attempt import run_attempt
 from g2p.learning.experiments import generalization, random_features, refine_one_trajectory
 from g2p.learning.kinematics import recording_pairs
-from g2p.learning.seeds import seed_streams
 from g2p.rl.sweep import SweepResult, ray_session, run_sweep
 
 PAPER = {
@@ -58,7 +57,7 @@ PAPER = {
 def air(seed: int, setup: Setup) -> dict[str, Any]:
     """One trajectory in the air, refined 5 times (paper Fig 5a)."""
     learner, rig, cycle = air_learner(seed, setup)
-    rng = seed_streams(seed).tracking
+    rng = learner.streams.tracking
     outcomes = refine_one_trajectory(learner, rig, random_features(rng, cycle, 1)[0], cycle, refinements=5)
     mse = [o.tracking.mse_deg2 for o in outcomes]
     return {"seed": seed, "mse_deg2": mse, "ratio": mse[-1] / mse[0]}
@@ -67,7 +66,7 @@ def air(seed: int, setup: Setup) -> dict[str, Any]:
 def general(seed: int, setup: Setup) -> dict[str, Any]:
     """Generalization to unseen trajectories (paper Fig 5b)."""
     learner, rig, cycle = air_learner(seed, setup)
-    rng = seed_streams(seed).tracking
+    rng = learner.streams.tracking
     train, test = random_features(rng, cycle, 30), random_features(rng, cycle, 30)
     g = generalization(learner, rig, cycle, train[: setup.n_train], test)
     return {
@@ -82,7 +81,7 @@ def general(seed: int, setup: Setup) -> dict[str, Any]:
 def bound(seed: int, setup: Setup) -> dict[str, Any]:
     """The generalization test trajectories tracked by maps fitted on their own data (see the docstring)."""
     learner, rig, cycle = air_learner(seed, setup)
-    rng = seed_streams(seed).tracking
+    rng = learner.streams.tracking
     _train, test = random_features(rng, cycle, 30), random_features(rng, cycle, 30)  # as `general` draws
     pre = learner.config.preprocess
     x, y = learner.dataset.arrays()

@@ -131,7 +131,7 @@ def g2p_run(seed: int, envelope: EnvelopeConfig) -> dict[str, Any]:
     learner = Learner(replace(LearnerConfig(), seed=seed))
     learner.babble(rig)
     babbled, babble_env = len(meter.samples), rig.counters.envelope_ticks
-    run = TreadmillRun(learner, SearchConfig(), LimitCycleConfig(), seed)
+    run = TreadmillRun(learner, SearchConfig(), LimitCycleConfig())
     spans = []
     while not run.finished:
         start, env_before = len(meter.samples), rig.counters.envelope_ticks

@@ -11,8 +11,8 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from std_msgs.msg import Header
 
-from g2p import run_events
 from g2p.inverse_map import FitReport
+from g2p.learning import run_events
 from g2p.learning.attempt import AttemptOutcome
 from g2p.learning.learner import Learner
 from g2p.learning.limit_cycle import LimitCycleConfig, cycle_kinematics

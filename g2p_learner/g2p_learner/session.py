@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from g2p import run_events
 from g2p.bags.runs import new_run_id
 from g2p.inverse_map import FitReport
+from g2p.learning import run_events
 from g2p.learning.attempt import AttemptOutcome
 from g2p.learning.checkpoint import capture
 from g2p.learning.experiments import (
@@ -33,7 +33,6 @@ from g2p.learning.learner import Learner
 from g2p.learning.limit_cycle import LimitCycleConfig
 from g2p.learning.run_events import Event
 from g2p.learning.search import SearchConfig
-from g2p.learning.seeds import seed_streams
 from g2p.plant import Recording
 from g2p.rig import ProgressCallback, RetryingRig
 from g2p_learner.config import LearnerNodeConfig
@@ -82,10 +81,11 @@ class LearningSession:
         self.learner = Learner(config.learner)
         self.run_id = config.run_id or new_run_id(datetime.now(timezone.utc), np.random.default_rng())
         self.bag_path = config.bag_path
+        self._single_attempts = 0
 
     @property
     def control(self) -> str:
-        """How attempts are played ("open_loop" or a closed-loop tracker)."""
+        """How attempts are played: "open" or "closed" loop."""
         return self.learner.config.control.value
 
     def adopt(self, recorded: tuple[str, str] | None) -> None:
@@ -109,8 +109,9 @@ class LearningSession:
         refine: bool,
         progress: Callable[[int, int], None],
     ) -> tuple[AttemptOutcome, FitReport | None]:
-        """One attempt outside a run (numbered after the map's refinements), announced and recorded."""
-        number = self.learner.refinements + 1
+        """One attempt outside a run (numbered from 1 in the session), announced and recorded."""
+        self._single_attempts += 1
+        number = self._single_attempts
         self.record.attempt_start("attempt", number, features, cycle, self.control)
         outcome, fit = self.learner.attempt(self.rig, features, cycle, refine, progress, self.cancel)
         self.record.attempt_end("attempt", number, outcome)
@@ -130,7 +131,7 @@ class LearningSession:
             },
         )
         fit = self._fit_from_bag(dataset_bag) if dataset_bag else self.babble(babbling_s or None, progress)
-        return TreadmillRun(self.learner, search, self.config.cycle, self.config.learner.seed), fit
+        return TreadmillRun(self.learner, search, self.config.cycle), fit
 
     def resume(self, bag: str, config_topic: str) -> TreadmillRun:
         """The run recorded in `bag`, restored at its last checkpoint; the continuation keeps its id.
@@ -185,7 +186,7 @@ class LearningSession:
             test: test trajectories (0: 30).
         """
         cycle = self.config.air_cycle
-        rng = seed_streams(self.config.learner.seed).tracking
+        rng = self.learner.streams.tracking
         if refine_one:
             chosen = features if len(features) else random_features(rng, cycle, 1)[0]
             refinement = TrajectoryRefinement(self.learner, chosen, cycle, refinements or 5)

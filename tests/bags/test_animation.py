@@ -14,7 +14,7 @@ import pytest
 from matplotlib.figure import Figure
 from PIL import Image
 
-from g2p.bags import AttemptData, load_run
+from g2p.bags import RecordedAttempt, load_run
 from g2p.bags import animation as anim
 from g2p.bags.animation import belt_marks, frame_geometry, frame_ticks, write_animation
 from g2p.bags.events import RunEvent
@@ -47,7 +47,7 @@ def event(kind: str, attempt: int, reward_mm: float = math.nan) -> RunEvent:
 
 def attempt_of(
     t_s: np.ndarray, position_rad: np.ndarray, belt_mm: np.ndarray, desired: np.ndarray | None = None
-) -> AttemptData:
+) -> RecordedAttempt:
     """Attempt 3 (reward 12.5 mm) made of the given ticks."""
     n = len(t_s)
     rec = Recording(
@@ -61,12 +61,12 @@ def attempt_of(
         power_w=np.zeros((n, 3)),
         energy_j=np.zeros((n, 3)),
     )
-    return AttemptData(
+    return RecordedAttempt(
         3, "exploration", event("attempt_start", 3), event("attempt_end", 3, 12.5), rec, desired
     )
 
 
-def swinging(n: int) -> AttemptData:
+def swinging(n: int) -> RecordedAttempt:
     """n ticks at 78 Hz from t = 1000 s: the hip swings, the belt runs at 39 mm/s."""
     t = 1000.0 + np.arange(n) / RIG_HZ
     q = np.stack([0.4 * np.sin(2 * np.pi * (t - 1000.0)), np.full(n, -0.3)], axis=1)

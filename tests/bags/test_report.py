@@ -15,9 +15,9 @@ import pytest
 from PIL import Image
 
 from g2p.bags import (
-    AttemptData,
     BagError,
     BagWriter,
+    RecordedAttempt,
     TopicSpec,
     TypeRegistry,
     animation,
@@ -193,7 +193,7 @@ def test_leg_description_from_the_bag(
     drawn: list[LegDescription] = []
     original = animation.write_animation
 
-    def spy(attempt: AttemptData, description: LegDescription, *args: Any) -> Path | None:
+    def spy(attempt: RecordedAttempt, description: LegDescription, *args: Any) -> Path | None:
         drawn.append(description)
         return original(attempt, description, *args)
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from g2p.hardware import HardwareLeg, HardwareLegConfig, SimulatedClock, WiringConfig
-from g2p.hardware_fake.buses import FakeRig, FakeRigConfig, fake_devices
+from g2p.hardware_fake.buses import FakeBuses, FakeBusesConfig, fake_devices
 
 # The watchdog thread reads the clock; with a simulated clock, time only moves inside ticks, so it
 # would never trip: leave it off and test it on the monotonic clock.
@@ -13,8 +13,8 @@ FAST = HardwareLegConfig(step_watchdog_s=0.0)
 def fake_leg(
     wiring: WiringConfig | None = None,
     config: HardwareLegConfig = FAST,
-    fake_config: FakeRigConfig | None = None,
-) -> tuple[HardwareLeg, FakeRig]:
+    fake_config: FakeBusesConfig | None = None,
+) -> tuple[HardwareLeg, FakeBuses]:
     """A HardwareLeg on fake buses backed by the MuJoCo leg (air by default), on a simulated clock."""
     wiring = wiring if wiring is not None else WiringConfig()
     fake, devices = fake_devices(wiring, fake_config, SimulatedClock())

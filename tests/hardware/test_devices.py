@@ -12,14 +12,14 @@ import pytest
 
 from g2p.hardware import DeviceError, WiringConfig, build_devices, open_devices
 from g2p.hardware.wiring import MotorEnableConfig
-from g2p.hardware_fake.buses import FakeRig, FakeRigConfig
+from g2p.hardware_fake.buses import FakeBuses, FakeBusesConfig
 from g2p.hardware_fake.chips import FaultKind
 
 WIRING = WiringConfig()
 
 
 def test_build_devices_sets_every_chip_up_and_leaves_the_outputs_off() -> None:
-    fake = FakeRig(WIRING)
+    fake = FakeBuses(WIRING)
     devices = build_devices(WIRING, fake)
     assert fake.pca is not None and fake.pca.regs[0xFE] == 5
     assert fake.enable_line is not None and fake.enable_line.active is False
@@ -45,7 +45,7 @@ def test_build_devices_sets_every_chip_up_and_leaves_the_outputs_off() -> None:
     ],
 )
 def test_a_broken_chip_fails_the_set_up_naming_it_and_releases_the_buses(breakage: Any, message: str) -> None:
-    fake = FakeRig(WIRING)
+    fake = FakeBuses(WIRING)
     breakage(fake)
     with pytest.raises(DeviceError, match=message):
         build_devices(WIRING, fake)
@@ -53,7 +53,7 @@ def test_a_broken_chip_fails_the_set_up_naming_it_and_releases_the_buses(breakag
 
 
 # ----------------------------------------------------------------------------------------------------
-# Fake Linux libraries, exposing the FakeRig's chips through spidev/smbus2/gpiod's APIs.
+# Fake Linux libraries, exposing the FakeBuses's chips through spidev/smbus2/gpiod's APIs.
 
 
 @dataclass
@@ -63,7 +63,7 @@ class Opened:
     lines: list[tuple[str, str, dict[int, Any]]]
 
 
-def fake_linux_modules(fake: FakeRig, opened: Opened) -> dict[str, types.ModuleType]:
+def fake_linux_modules(fake: FakeBuses, opened: Opened) -> dict[str, types.ModuleType]:
     spidev = types.ModuleType("spidev")
 
     class SpiDev:
@@ -141,7 +141,7 @@ def fake_linux_modules(fake: FakeRig, opened: Opened) -> dict[str, types.ModuleT
 
 
 def test_open_devices_opens_the_configured_buses_modes_and_line(monkeypatch: pytest.MonkeyPatch) -> None:
-    fake = FakeRig(WIRING)
+    fake = FakeBuses(WIRING)
     opened = Opened([], [], [])
     for name, module in fake_linux_modules(fake, opened).items():
         monkeypatch.setitem(sys.modules, name, module)
@@ -162,7 +162,7 @@ def test_open_devices_opens_the_configured_buses_modes_and_line(monkeypatch: pyt
 
 
 def test_open_devices_names_a_missing_library_or_bus(monkeypatch: pytest.MonkeyPatch) -> None:
-    fake = FakeRig(WIRING)
+    fake = FakeBuses(WIRING)
     modules = fake_linux_modules(fake, Opened([], [], []))
     for name, module in modules.items():
         monkeypatch.setitem(sys.modules, name, module)
@@ -177,7 +177,7 @@ def test_open_devices_names_a_missing_library_or_bus(monkeypatch: pytest.MonkeyP
 
 def test_the_sysfs_backend_on_the_fake_tree(tmp_path: Any) -> None:
     wiring = replace(WIRING, pwm=replace(WIRING.pwm, backend=WIRING.pwm.backend.SYSFS, frequency_hz=20000.0))
-    fake = FakeRig(wiring, FakeRigConfig(state_dir=str(tmp_path)))
+    fake = FakeBuses(wiring, FakeBusesConfig(state_dir=str(tmp_path)))
     devices = build_devices(wiring, fake)
     assert fake.sysfs is not None
     assert fake.sysfs.channel_state(1) == (50_000, 0, True)

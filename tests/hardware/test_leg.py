@@ -11,7 +11,7 @@ import pytest
 
 from g2p.hardware import HardwareFault, HardwareLeg, HardwareLegConfig, MonotonicClock, WiringConfig
 from g2p.hardware.leg import dither_activation
-from g2p.hardware_fake.buses import FakeRigConfig, fake_devices
+from g2p.hardware_fake.buses import FakeBusesConfig, fake_devices
 from g2p.hardware_fake.chips import FaultKind
 from g2p.plant import hold
 from g2p.sim import TREADMILL_CARRIAGE_HEIGHT_M
@@ -230,7 +230,7 @@ def test_the_dither_moves_the_hip_alone_and_decays_to_baseline() -> None:
 
 
 def test_belt_counter_reads_the_treadmill() -> None:
-    leg, fake = fake_leg(fake_config=FakeRigConfig(carriage_height_m=TREADMILL_CARRIAGE_HEIGHT_M))
+    leg, fake = fake_leg(fake_config=FakeBusesConfig(carriage_height_m=TREADMILL_CARRIAGE_HEIGHT_M))
     origin = fake.belt_mm  # what the plant's first reading saw
     leg.reset()
     # Stance (M0 presses the foot down and back), then swing (M1 brings the leg forward), three times.

@@ -47,7 +47,7 @@ def run_after(k: int) -> tuple[TreadmillRun, list[Recording], list[Recording]]:
     babbling = [synthetic_recording(rng, 10.0, 0.0), synthetic_recording(rng, 10.0, 10.0)]
     learner = Learner(CONFIG)
     learner.fit_babbling(babbling)
-    run = TreadmillRun(learner, SEARCH, CYCLE, CONFIG.seed)
+    run = TreadmillRun(learner, SEARCH, CYCLE)
     attempts = []
     for reward in REWARDS_MM[:k]:
         attempts.append(synthetic_recording(rng, 4.0, 30.0 + 5.0 * len(attempts)))
@@ -124,7 +124,7 @@ def test_a_checkpoint_stays_small() -> None:
 
 
 def test_capture_needs_a_fitted_map() -> None:
-    run = TreadmillRun(Learner(CONFIG), SEARCH, CYCLE, CONFIG.seed)
+    run = TreadmillRun(Learner(CONFIG), SEARCH, CYCLE)
     with pytest.raises(CheckpointError, match="not fitted"):
         capture(run)
 

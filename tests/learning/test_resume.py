@@ -39,7 +39,7 @@ def babbled() -> tuple[TreadmillRun, PlantRig]:
     rig = PlantRig(MujocoLeg(MujocoLegConfig()))
     learner = Learner(CONFIG)
     learner.babble(rig)
-    return TreadmillRun(learner, SEARCH, CYCLE, CONFIG.seed), rig
+    return TreadmillRun(learner, SEARCH, CYCLE), rig
 
 
 class FailingRig:

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from g2p.learning.search import (
-    AttemptResult,
     Phase,
     RewardSearch,
     SearchConfig,
     SearchFinished,
+    SearchStep,
     exploitation_sigma,
 )
 from g2p.validation import ConfigError
@@ -25,7 +25,7 @@ def quadratic_reward(f: np.ndarray) -> float:
     return float(400.0 - 1000.0 * np.sum((f - F_STAR) ** 2))
 
 
-def run(search: RewardSearch, rng: np.random.Generator) -> list[AttemptResult]:
+def run(search: RewardSearch, rng: np.random.Generator) -> list[SearchStep]:
     while not search.finished:
         f = search.propose(rng)
         search.tell(f, quadratic_reward(f))
@@ -150,7 +150,7 @@ def test_done_after_exploitation_attempts_with_counts() -> None:
         assert not result.improved
     assert (search.phase, search.n_exploration, search.n_exploitation) == (Phase.DONE, 2, 3)
     assert search.best_reward_mm == 70.0
-    assert [a.index for a in search.history] == [0, 1, 2, 3, 4]
+    assert [a.number for a in search.history] == [1, 2, 3, 4, 5]
     with pytest.raises(SearchFinished, match="done"):
         search.propose(rng)
 

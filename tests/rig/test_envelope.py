@@ -194,7 +194,6 @@ def test_babbling_and_a_short_g2p_run_pass_the_envelope_almost_untouched() -> No
         learner,
         SearchConfig(max_exploration_attempts=3, exploitation_attempts=3),
         LimitCycleConfig(n_cycles=5),
-        0,
     )
     while not run.finished:
         run.next_attempt(rig)

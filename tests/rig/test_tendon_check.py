@@ -7,7 +7,7 @@ from dataclasses import replace
 import pytest
 
 from g2p.hardware import HardwareLeg, SimulatedClock, WiringConfig, build_devices
-from g2p.hardware_fake.buses import FakeRig
+from g2p.hardware_fake.buses import FakeBuses
 from g2p.rig import PlantRig
 from g2p.rig.tendon_check import TendonCheckConfig, check_tendons
 from g2p.validation import ConfigError
@@ -18,7 +18,7 @@ WIRING = WiringConfig()
 
 def check(truth: WiringConfig) -> tuple[bool, str]:
     clock = SimulatedClock()
-    fake = FakeRig(WIRING, None, clock, truth=truth)
+    fake = FakeBuses(WIRING, None, clock, truth=truth)
     leg = HardwareLeg(build_devices(WIRING, fake), WIRING, FAST, clock)
     report = check_tendons(PlantRig(leg))
     leg.close()

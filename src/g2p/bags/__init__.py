@@ -8,7 +8,7 @@ May import: g2p.description, g2p.inverse_map, g2p.rig, g2p.learning.
 
 from typing import TYPE_CHECKING, Any
 
-from g2p.bags.dataset import AttemptData, RunData, TrainingData, load_run, load_training_data
+from g2p.bags.dataset import RecordedAttempt, RunData, TrainingData, load_run, load_training_data
 from g2p.bags.errors import BagError, BagReadError, BagWriteError, InterfaceError, RecoveryError
 from g2p.bags.interfaces import InterfaceLibrary, TypeDefinition, TypeRegistry, ament_share_dirs
 from g2p.bags.metadata import BagMetadata, TopicInfo, read_metadata
@@ -31,7 +31,6 @@ def __getattr__(name: str) -> Any:
 
 
 __all__ = [
-    "AttemptData",
     "BagError",
     "BagMetadata",
     "BagReadError",
@@ -42,6 +41,7 @@ __all__ = [
     "InterfaceError",
     "InterfaceLibrary",
     "RawMessage",
+    "RecordedAttempt",
     "RecoveryError",
     "RecoveryResult",
     "ReportResult",

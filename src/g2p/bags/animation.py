@@ -31,7 +31,7 @@ from matplotlib.figure import Figure
 from numpy.typing import NDArray
 from PIL import Image
 
-from g2p.bags.dataset import AttemptData
+from g2p.bags.dataset import RecordedAttempt
 from g2p.bags.events import FloatArray
 from g2p.description import LegDescription, forward_kinematics
 from g2p.files import write_atomically
@@ -125,7 +125,7 @@ def belt_marks(travel_mm: float, x_min_m: float, x_max_m: float, spacing_m: floa
     return np.arange(first, last + 1, dtype=np.float64) * spacing_m - shift_m
 
 
-def frame_geometry(description: LegDescription, attempt: AttemptData, tick: int) -> FrameGeometry:
+def frame_geometry(description: LegDescription, attempt: RecordedAttempt, tick: int) -> FrameGeometry:
     """The stick figure, foot paths and belt marks of one tick of an attempt (what the left panel draws).
 
     Args:
@@ -165,7 +165,7 @@ def mp4_available() -> bool:
 
 
 def write_animation(
-    attempt: AttemptData,
+    attempt: RecordedAttempt,
     description: LegDescription,
     path: Path,
     fps: int = FRAMES_PER_SECOND,
@@ -201,7 +201,7 @@ def write_animation(
 
 
 def _render(
-    attempt: AttemptData,
+    attempt: RecordedAttempt,
     description: LegDescription,
     ticks: NDArray[np.intp],
     fps: int,

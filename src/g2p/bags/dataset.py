@@ -60,7 +60,7 @@ _STAMP_SLACK_NS = 1_000_000
 
 
 @dataclass(frozen=True)
-class AttemptData:
+class RecordedAttempt:
     """One attempt of a run.
 
     Attributes:
@@ -157,7 +157,7 @@ class RunData:
     ticks: Ticks
     events: list[RunEvent]
     babbling_segments: list[Recording]
-    attempts: list[AttemptData]
+    attempts: list[RecordedAttempt]
     inverse_maps: list[InverseMapSnapshot]
     configs: dict[str, Any]
     leg_description: LegDescription | None = None
@@ -312,7 +312,7 @@ def _babbling(ticks: Ticks, events: list[RunEvent]) -> list[Recording]:
     return segments
 
 
-def _attempts(ticks: Ticks, events: list[RunEvent], limits: RigLimitsByStamp | None) -> list[AttemptData]:
+def _attempts(ticks: Ticks, events: list[RunEvent], limits: RigLimitsByStamp | None) -> list[RecordedAttempt]:
     attempts = []
     for i, start in enumerate(events):
         if start.event != Event.ATTEMPT_START:
@@ -330,7 +330,7 @@ def _attempts(ticks: Ticks, events: list[RunEvent], limits: RigLimitsByStamp | N
         recording = _segment(ticks, start, closing, closes=end is not None)
         phase = start.phase or (end.phase if end is not None else "")
         attempts.append(
-            AttemptData(
+            RecordedAttempt(
                 start.attempt,
                 phase,
                 start,

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from g2p.bags.dataset import AttemptData, RunData
+from g2p.bags.dataset import RecordedAttempt, RunData
 from g2p.bags.events import FloatArray
 from g2p.bags.summary import NEAR_LIMIT_BAND, best_so_far, near_limit_fraction
 from g2p.plant import JOINT_NAMES
@@ -89,7 +89,7 @@ def reward_vs_energy(run: RunData, threshold_mm: float, path: Path) -> Path | No
     return _save(fig, path)
 
 
-def tracking(attempt: AttemptData, path: Path) -> Path | None:
+def tracking(attempt: RecordedAttempt, path: Path) -> Path | None:
     """Fig 5a: desired and actual joint angles of one attempt, against time from its first tick."""
     rec = attempt.recording
     if len(rec) == 0:
@@ -119,14 +119,14 @@ def tracking_mse(run: RunData, path: Path) -> Path | None:
     fig = Figure(figsize=(6, 4))
     ax = fig.add_subplot()
     ax.plot([a.attempt for a in attempts], [a.tracking_mse_deg2 for a in attempts], "o-", color="tab:green")
-    ax.set_xlabel("attempt (refinements so far + 1)")
+    ax.set_xlabel("attempt")
     ax.set_ylabel("tracking MSE (deg$^2$)")
     ax.set_title("Tracking error per refinement")
     return _save(fig, path)
 
 
 def angle_distribution(
-    run: RunData, attempt: AttemptData | None, limits_rad: FloatArray | None, path: Path
+    run: RunData, attempt: RecordedAttempt | None, limits_rad: FloatArray | None, path: Path
 ) -> Path | None:
     """Fig 6: distribution of each joint's angle in babbling and in one attempt, with the 5% bands."""
     if len(run.babbling) == 0 or limits_rad is None:

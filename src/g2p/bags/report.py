@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from g2p.bags import animation, plots
-from g2p.bags.dataset import AttemptData, RunData, load_run
+from g2p.bags.dataset import RecordedAttempt, RunData, load_run
 from g2p.bags.errors import BagError
 from g2p.bags.index_page import IndexEntry, index_html
 from g2p.bags.runs import report_dir, summary_path
@@ -218,7 +218,7 @@ def _description(run: RunData) -> LegDescription:
         raise BagError(f"no robot_description in the bag, and no packaged leg: {err}") from err
 
 
-def _animation_caption(attempt: AttemptData, name: str, options: AnimationOptions) -> str:
+def _animation_caption(attempt: RecordedAttempt, name: str, options: AnimationOptions) -> str:
     best = ", the best" if name.startswith(BEST_ANIMATION) else ""
     reward = f"{attempt.reward_mm:.1f} mm" if math.isfinite(attempt.reward_mm) else "not reported"
     span = f"its first {options.max_seconds:g} s" if options.max_seconds is not None else "all of it"
@@ -230,7 +230,7 @@ def _animation_caption(attempt: AttemptData, name: str, options: AnimationOption
     )
 
 
-def _best_attempt(run: RunData) -> AttemptData | None:
+def _best_attempt(run: RunData) -> RecordedAttempt | None:
     """The attempt with the highest reward among those with ticks (the first of equals).
 
     When none has a reward, the last with ticks; None when no attempt has ticks.
@@ -242,7 +242,7 @@ def _best_attempt(run: RunData) -> AttemptData | None:
     return with_ticks[-1] if with_ticks else None
 
 
-def _find_attempt(run: RunData, attempt: int) -> AttemptData:
+def _find_attempt(run: RunData, attempt: int) -> RecordedAttempt:
     found = [a for a in run.attempts if a.attempt == attempt]
     if not found:
         raise BagError(
@@ -253,7 +253,7 @@ def _find_attempt(run: RunData, attempt: int) -> AttemptData:
     return found[-1]
 
 
-def _shown_attempt(run: RunData, attempt: int | None) -> AttemptData | None:
+def _shown_attempt(run: RunData, attempt: int | None) -> RecordedAttempt | None:
     if attempt is not None:
         return _find_attempt(run, attempt)
     with_desired = [a for a in run.attempts if a.desired_position_rad is not None and len(a.recording)]

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from g2p.bags.dataset import AttemptData, RunData
+from g2p.bags.dataset import RecordedAttempt, RunData
 from g2p.bags.events import FloatArray
 from g2p.learning.run_events import Event
 from g2p.rig.envelope import stop_entry_speeds
@@ -230,7 +230,7 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _attempt_summary(a: AttemptData, best: float, limits: FloatArray | None) -> dict[str, Any]:
+def _attempt_summary(a: RecordedAttempt, best: float, limits: FloatArray | None) -> dict[str, Any]:
     return {
         "attempt": a.attempt,
         "phase": a.phase,

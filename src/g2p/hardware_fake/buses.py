@@ -1,15 +1,15 @@
 """The whole rig on fake buses (`g2p.hardware_fake.chips`), backed by the MuJoCo leg.
 
-`FakeRig` wires the fake chips to a `g2p.sim.MujocoLeg`: the duty cycles on the motor channels (and the
+`FakeBuses` wires the fake chips to a `g2p.sim.MujocoLeg`: the duty cycles on the motor channels (and the
 enable line) drive the physics, the encoders, belt counter and current sensors read its state, so the
 hardware plant on fake buses moves like the leg. This module imports MuJoCo; the fake chips do not.
 
     wiring = load_wiring("wiring.yaml")
-    fake = FakeRig(wiring, FakeRigConfig(), clock=SimulatedClock())
+    fake = FakeBuses(wiring, FakeBusesConfig(), clock=SimulatedClock())
     leg = HardwareLeg(build_devices(wiring, fake), wiring, clock=fake.clock)
 
-Faults can be injected (`FakeRig.inject`, or a faults.json file in `FakeRigConfig.state_dir` for a fake
-rig running in another process); the outputs are observable (`FakeRig.outputs_state`, or outputs.json in
+Faults can be injected (`FakeBuses.inject`, or a faults.json file in `FakeBusesConfig.state_dir` for a fake
+rig running in another process); the outputs are observable (`FakeBuses.outputs_state`, or outputs.json in
 the state directory).
 """
 
@@ -51,7 +51,7 @@ from g2p.validation import require, require_positive
 
 
 @dataclass(frozen=True)
-class FakeRigConfig:
+class FakeBusesConfig:
     """The physics and observability of the fake rig.
 
     Attributes:
@@ -81,7 +81,7 @@ class FakeRigConfig:
         require_positive(self.supply_voltage_v, "supply_voltage_v")
 
 
-def fake_leg_config(config: FakeRigConfig) -> MujocoLegConfig:
+def fake_leg_config(config: FakeBusesConfig) -> MujocoLegConfig:
     """The MuJoCo leg behind the fake buses (the driver describes its model as robot_description)."""
     return MujocoLegConfig(
         carriage_height_m=config.carriage_height_m,
@@ -94,7 +94,7 @@ def fake_leg_config(config: FakeRigConfig) -> MujocoLegConfig:
     )
 
 
-class FakeRig:
+class FakeBuses:
     """The whole rig on fake buses: a `BusFactory` whose chips read and drive a MuJoCo leg.
 
     Args:
@@ -109,12 +109,12 @@ class FakeRig:
     def __init__(
         self,
         wiring: WiringConfig,
-        config: FakeRigConfig | None = None,
+        config: FakeBusesConfig | None = None,
         clock: Clock | None = None,
         truth: WiringConfig | None = None,
     ) -> None:
         self.wiring = wiring
-        self.config = cfg = config if config is not None else FakeRigConfig()
+        self.config = cfg = config if config is not None else FakeBusesConfig()
         self.truth = truth if truth is not None else wiring
         self.clock = clock if clock is not None else MonotonicClock()
         self._lock = threading.RLock()
@@ -353,26 +353,26 @@ class FakeRig:
 
 
 def fake_devices(
-    wiring: WiringConfig, config: FakeRigConfig | None = None, clock: Clock | None = None
-) -> tuple[FakeRig, RigDevices]:
+    wiring: WiringConfig, config: FakeBusesConfig | None = None, clock: Clock | None = None
+) -> tuple[FakeBuses, RigDevices]:
     """A fake rig and its devices set up by the real set-up code (`build_devices`).
 
     Returns:
         (the fake rig, the `RigDevices` on its buses).
     """
-    fake = FakeRig(wiring, config, clock)
+    fake = FakeBuses(wiring, config, clock)
     return fake, build_devices(wiring, fake)
 
 
 __all__ = [
     "FakeAS5048A",
+    "FakeBuses",
+    "FakeBusesConfig",
     "FakeINA219",
     "FakeLS7366R",
     "FakeOutputLine",
     "FakePCA9685",
     "FakePwmSysfs",
-    "FakeRig",
-    "FakeRigConfig",
     "FakeSMBus",
     "FaultKind",
     "FaultPlan",

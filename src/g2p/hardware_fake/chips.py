@@ -4,7 +4,7 @@ Each fake chip speaks its real protocol at the level the Linux bus sees it: `Fak
 `FakeLS7366R` implement spidev's `xfer2` (16-bit pipelined frames with even parity; LS7366R instruction
 bytes), `FakeSMBus` turns SMBus calls into the bytes on the wire for `FakePCA9685` and `FakeINA219`
 (register pointer, auto-increment, MSB-first INA219 words), `FakePwmSysfs` keeps a sysfs PWM tree in a
-directory and exports channels as the kernel does. `g2p.hardware_fake.buses.FakeRig` wires them to the
+directory and exports channels as the kernel does. `g2p.hardware_fake.buses.FakeBuses` wires them to the
 MuJoCo leg. Faults to inject are described by `FaultPlan`.
 """
 

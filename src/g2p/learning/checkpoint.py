@@ -396,7 +396,7 @@ def restore(
     learner.babbling_rng.bit_generator.state = c.rng_states["babbling"]
     learner.map_rng.bit_generator.state = c.rng_states["inverse_map"]
 
-    run = TreadmillRun(learner, search, cycle, learner_config.seed)
+    run = TreadmillRun(learner, search, cycle)
     run.rng.bit_generator.state = c.rng_states["search"]
     for k, (features, reward) in enumerate(c.search.told):
         try:

@@ -18,30 +18,40 @@ from g2p.inverse_map import FitReport
 from g2p.learning.attempt import AttemptOutcome, TrackingError, run_attempt
 from g2p.learning.learner import Learner
 from g2p.learning.limit_cycle import LimitCycleConfig
-from g2p.learning.search import FloatArray, Phase, RewardSearch, SearchConfig
-from g2p.learning.seeds import seed_streams
+from g2p.learning.search import FloatArray, Phase, RewardSearch, SearchConfig, SearchStep
 from g2p.rig import ProgressCallback, Rig
 
 
 @dataclass(frozen=True)
 class AttemptReport:
-    """One attempt of a treadmill run, with the search state after it.
+    """One attempt of a treadmill run: what the rig did, what the search made of it, and the refinement.
 
     Attributes:
-        number: attempt number within the run (1-based; counts the attempts before a restore).
-        phase: the phase the attempt belonged to.
+        step: the search's record of the attempt (its number, phase, sigma).
         outcome: what was asked, what happened, and the scores.
-        sigma: standard deviation of the exploitation draw (None in exploration).
         best_reward_mm: best reward so far, this attempt included (mm).
         fit: the refinement that followed the attempt.
     """
 
-    number: int
-    phase: Phase
+    step: SearchStep
     outcome: AttemptOutcome
-    sigma: float | None
     best_reward_mm: float
     fit: FitReport | None
+
+    @property
+    def number(self) -> int:
+        """Attempt number within the run (1-based; counts the attempts before a restore)."""
+        return self.step.number
+
+    @property
+    def phase(self) -> Phase:
+        """The phase the attempt belonged to."""
+        return self.step.phase
+
+    @property
+    def sigma(self) -> float | None:
+        """Standard deviation of the exploitation draw (None in exploration)."""
+        return self.step.sigma
 
 
 class TreadmillRun:
@@ -51,10 +61,9 @@ class TreadmillRun:
         learner: a learner whose map is fitted (after babbling).
         search: search parameters (threshold, attempt budgets, sigma schedule, feature bounds).
         cycle: limit-cycle parameters; its feature bounds must equal the search's.
-        seed: seed of the search's proposals.
     """
 
-    def __init__(self, learner: Learner, search: SearchConfig, cycle: LimitCycleConfig, seed: int) -> None:
+    def __init__(self, learner: Learner, search: SearchConfig, cycle: LimitCycleConfig) -> None:
         if (search.feature_low, search.feature_high) != (cycle.feature_low, cycle.feature_high):
             raise ValueError(
                 "search and cycle feature bounds differ: "
@@ -65,7 +74,7 @@ class TreadmillRun:
         self.cycle = cycle
         self.reports: list[AttemptReport] = []
         """Reports of the attempts this object ran, in order (after a restore: only those since)."""
-        self._rng = seed_streams(seed).search
+        self._rng = learner.streams.search
         self._pending: FloatArray | None = None
 
     @property
@@ -121,9 +130,7 @@ class TreadmillRun:
         outcome, fit = self.learner.attempt(rig, features, self.cycle, True, progress, cancel)
         self._pending = None
         told = self.search.tell(features, outcome.reward_mm)
-        report = AttemptReport(
-            len(self.search.history), told.phase, outcome, told.sigma, self.search.best_reward_mm, fit
-        )
+        report = AttemptReport(told, outcome, self.search.best_reward_mm, fit)
         self.reports.append(report)
         return report
 
@@ -166,7 +173,7 @@ def run_treadmill(
 ) -> TreadmillResult:
     """The treadmill task in-process: babble, fit, then attempts until the search ends (paper Fig 4)."""
     fit = learner.babble(rig)
-    run = TreadmillRun(learner, search, cycle, learner.config.seed)
+    run = TreadmillRun(learner, search, cycle)
     while not run.finished:
         run.next_attempt(rig)
     return treadmill_result(run, fit)

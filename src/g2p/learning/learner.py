@@ -117,9 +117,9 @@ class Learner:
 
     def __init__(self, config: LearnerConfig | None = None) -> None:
         self.config = config or LearnerConfig()
-        streams = seed_streams(self.config.seed)
-        self._babble_rng = streams.babbling
-        self._map_rng = streams.inverse_map
+        self.streams = seed_streams(self.config.seed)
+        """The run's random streams, from its one seed: babbling and the map's here, the search's in
+        `TreadmillRun`, the free-movement experiments' in the tracking experiments."""
         self.inverse_map = InverseMap(self.config.inverse_map)
         self.dataset = Dataset()
         self.refinements = 0
@@ -131,12 +131,12 @@ class Learner:
     @property
     def babbling_rng(self) -> np.random.Generator:
         """The babbling activations' generator (its `bit_generator.state` is what a checkpoint keeps)."""
-        return self._babble_rng
+        return self.streams.babbling
 
     @property
     def map_rng(self) -> np.random.Generator:
         """The map's weights' and splits' generator (its `bit_generator.state` is what a checkpoint keeps)."""
-        return self._map_rng
+        return self.streams.inverse_map
 
     @property
     def lead_ticks(self) -> int:
@@ -160,7 +160,7 @@ class Learner:
         """
         cfg = self.config
         n = cfg.babbling.n_samples if duration_s is None else round(duration_s * cfg.babbling.rate_hz)
-        activations = babbling_activations(self._babble_rng, cfg.babbling, n)
+        activations = babbling_activations(self.streams.babbling, cfg.babbling, n)
         chunk = max(1, round(cfg.babbling_chunk_s * cfg.babbling.rate_hz))
         if progress is not None:
             progress(0, n)  # babbling has begun, before the rig's first report
@@ -184,7 +184,7 @@ class Learner:
             FitCancelled: `cancel` was set during the fit (the data is kept, the map is not fitted).
         """
         self.load_data(recordings, [])
-        return self.inverse_map.fit(*self.dataset.arrays(), self._map_rng, cancel)
+        return self.inverse_map.fit(*self.dataset.arrays(), self.streams.inverse_map, cancel)
 
     def load_data(self, babbling: Sequence[Recording], attempts: Sequence[tuple[str, Recording]]) -> None:
         """Rebuild the dataset as `fit_babbling` then `refine_with` build it, without fitting anything.
@@ -247,7 +247,7 @@ class Learner:
         try:
             recent = self.config.refine_recent_attempts
             rows = self.dataset.recent(recent) if recent else None
-            report = self.inverse_map.refine(*self.dataset.arrays(), self._map_rng, cancel, rows)
+            report = self.inverse_map.refine(*self.dataset.arrays(), self.streams.inverse_map, cancel, rows)
         except FitCancelled:
             self.dataset.segments.pop()
             raise

@@ -93,11 +93,11 @@ def exploitation_sigma(best_reward_mm: float, config: SearchConfig | None = None
 
 
 @dataclass(frozen=True)
-class AttemptResult:
+class SearchStep:
     """One told attempt.
 
     Attributes:
-        index: attempt number over the whole search, from 0.
+        number: attempt number over the whole search, from 1.
         phase: the phase the attempt belonged to (exploration or exploitation).
         features: the features run, shape (n_features,), read-only.
         reward_mm: its reward (mm of belt travel, + backward).
@@ -105,7 +105,7 @@ class AttemptResult:
         improved: whether it set a new best reward.
     """
 
-    index: int
+    number: int
     phase: Phase
     features: FloatArray
     reward_mm: float
@@ -123,7 +123,7 @@ class RewardSearch:
     def __init__(self, config: SearchConfig | None = None) -> None:
         self.config = config or SearchConfig()
         self._phase = Phase.EXPLORATION
-        self._history: list[AttemptResult] = []
+        self._history: list[SearchStep] = []
         self._n_exploration = 0
         self._n_exploitation = 0
         self._best_features: FloatArray | None = None
@@ -167,7 +167,7 @@ class RewardSearch:
         return exploitation_sigma(self._best_reward, self.config)
 
     @property
-    def history(self) -> tuple[AttemptResult, ...]:
+    def history(self) -> tuple[SearchStep, ...]:
         """Every told attempt, in order."""
         return tuple(self._history)
 
@@ -192,7 +192,7 @@ class RewardSearch:
             return np.clip(self._best_features + step, cfg.feature_low, cfg.feature_high)
         raise SearchFinished(f"the search is {self._phase.value}; nothing more to propose")
 
-    def tell(self, features: ArrayLike, reward_mm: float) -> AttemptResult:
+    def tell(self, features: ArrayLike, reward_mm: float) -> SearchStep:
         """Record an attempt's reward and advance the phase.
 
         Args:
@@ -228,7 +228,7 @@ class RewardSearch:
             if self._n_exploitation >= cfg.exploitation_attempts:
                 self._phase = Phase.DONE
         f.flags.writeable = False
-        result = AttemptResult(len(self._history), phase, f, reward, sigma, improved)
+        result = SearchStep(len(self._history) + 1, phase, f, reward, sigma, improved)
         self._history.append(result)
         return result
 

@@ -228,7 +228,7 @@ def _g2p_run(
     learner.babble(rig)
     paper = SearchConfig()
     search = replace(paper, exploitation_attempts=2**31) if keep_searching else paper
-    run = TreadmillRun(learner, search, cycle or LimitCycleConfig(), learner.config.seed)
+    run = TreadmillRun(learner, search, cycle or LimitCycleConfig())
     outcomes: list[AttemptOutcome] = []
     paper_stop_s = None
     faults = 0
