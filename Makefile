@@ -1,5 +1,5 @@
 # The two commands of the README. Both set up everything themselves (scripts/bootstrap).
-.PHONY: run test lint bootstrap
+.PHONY: run test test-core test-ros test-jazzy lint bootstrap
 
 # The ROS suites run on ROS 2 Jazzy (the Raspberry Pi's distribution) as well as on Kilted.
 ROS_SUITES := tests/ros tests/system
@@ -10,10 +10,22 @@ run:
 	scripts/with-env scripts/ros2-run g2p_bringup bringup $(ARGS)
 
 # Lint, then every test on ROS 2 Kilted (core, simulator, hardware on fake buses, bags, nodes, the whole
-# graph in real processes, and on two hosts with the rig on Jazzy), then the interface, node and system
-# tests on ROS 2 Jazzy.
+# graph in real processes, and on two hosts with the rig on Jazzy), and the ROS suites on ROS 2 Jazzy.
+# The core's suites (CPU-bound) run beside Jazzy's ROS suites (mostly waiting on processes): two cores.
 test: bootstrap lint
-	scripts/with-env python -m pytest --durations=15 tests
+	$(MAKE) --no-print-directory -j2 --output-sync=target test-core test-jazzy
+	$(MAKE) --no-print-directory test-ros
+
+# ROS 2 Kilted: everything but the ROS suites.
+test-core:
+	scripts/with-env python -m pytest --durations=15 $(addprefix --ignore=,$(ROS_SUITES) tests/twohost) tests
+
+# ROS 2 Kilted: the nodes, the graph in processes, two hosts.
+test-ros:
+	scripts/with-env python -m pytest --durations=15 $(ROS_SUITES) tests/twohost
+
+# ROS 2 Jazzy (the Raspberry Pi's): the nodes and the graph in processes.
+test-jazzy:
 	G2P_ROS_DISTRO=jazzy scripts/with-env python -m pytest --durations=15 $(ROS_SUITES)
 
 # ruff (check and format) on everything, mypy --strict on the core library.
