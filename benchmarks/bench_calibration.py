@@ -30,8 +30,8 @@ from g2p.bags.dataset import load_training_data
 from g2p.files import write_text_atomically
 from g2p.identification.calibrate import calibrate, plot_angles, report_markdown
 from g2p.identification.fit import FitConfig, angle_errors_rad, rmse_rad
+from g2p.identification.known_answers import rewards_mm
 from g2p.identification.segments import load_recorded_run
-from g2p.identification.validation import rewards_mm
 from g2p.inverse_map import InverseMap
 from g2p.learning.learner import LearnerConfig
 from g2p.learning.limit_cycle import LimitCycleConfig

@@ -26,7 +26,7 @@ import numpy as np
 
 from g2p.files import write_text_atomically
 from g2p.identification.fit import DEFAULT_PARAMETERS, FitConfig, fit
-from g2p.identification.validation import hidden_babbling
+from g2p.identification.known_answers import hidden_babbling
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, MujocoLeg, MujocoLegConfig
 from g2p.sim.calibration import PARAMETERS, LegCalibration, model_values
 

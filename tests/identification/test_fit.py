@@ -11,7 +11,7 @@ import pytest
 
 from g2p.identification import FitConfig, FitError, RecordedRun, Segment, calibrate, fit, replay
 from g2p.identification.fit import block_half_width, replay_config, split_blocks
-from g2p.identification.validation import hidden_babbling
+from g2p.identification.known_answers import hidden_babbling
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, MujocoLegConfig
 from g2p.sim.calibration import LegCalibration
 from g2p.sim.sensors import encoder_step_rad
