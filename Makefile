@@ -11,10 +11,10 @@ run:
 
 # Lint, then every test on ROS 2 Kilted (core, simulator, hardware on fake buses, bags, nodes, the whole
 # graph in real processes, and on two hosts with the rig on Jazzy), and the ROS suites on ROS 2 Jazzy.
-# The core's suites (CPU-bound) run beside Jazzy's ROS suites (mostly waiting on processes): two cores.
+# The three suites run side by side: the core's are CPU-bound, the ROS suites mostly wait on processes
+# (each test session has a ROS domain, and two-host namespaces, of its own). Each prints when it ends.
 test: bootstrap lint
-	$(MAKE) --no-print-directory -j2 --output-sync=target test-core test-jazzy
-	$(MAKE) --no-print-directory test-ros
+	$(MAKE) --no-print-directory -j3 --output-sync=target test-core test-ros test-jazzy
 
 # ROS 2 Kilted: everything but the ROS suites.
 test-core:
