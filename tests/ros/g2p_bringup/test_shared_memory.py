@@ -16,13 +16,26 @@ def fastdds_files() -> set[str]:
     return {p.name for p in SHM.iterdir() if p.name.startswith(("fastdds_", "fastrtps_"))}
 
 
+def files_of(pid: int) -> set[str]:
+    """The shared-memory segments process `pid` owns, with their lock files, but the port files (shared by
+    every participant that listens on the port). A segment's owner holds its `<segment>_el` file open;
+    its peers map the segment too, so mapping does not tell ownership. Read from /proc rather than by
+    comparing /dev/shm before and after a start, which would count the files of any other ROS 2 process
+    started meanwhile (`make test` runs the Kilted and Jazzy suites at once)."""
+    opened = {Path(fd.readlink()) for fd in Path(f"/proc/{pid}/fd").iterdir() if fd.is_symlink()}
+    locks = {
+        path.name
+        for path in opened
+        if path.parent == SHM and path.name.startswith(("fastdds_", "fastrtps_")) and "_port" not in path.name
+    }
+    return locks | {lock.removesuffix("_el") for lock in locks}
+
+
 def start_sim_and_its_files(log_dir: Path) -> tuple[NodeProcess, set[str]]:
-    """A simulator node, and the shared-memory segments that appeared with it (a participant's own; port
-    files are shared by the participants that listen on the port)."""
-    before = fastdds_files()
+    """A simulator node, and the shared-memory segments it holds."""
     sim = NodeProcess("g2p_sim", "sim", ["--ros-args", "-r", "__ns:=/shm_test"], log_dir)
     wait_until(lambda: "serving the rig contract" in sim.log(), 60.0, "the simulator")
-    return sim, {f for f in fastdds_files() - before if "_port" not in f}
+    return sim, files_of(sim.popen.pid)
 
 
 def test_the_files_of_a_killed_node_are_removed_and_a_running_nodes_kept(tmp_path: Path) -> None:
