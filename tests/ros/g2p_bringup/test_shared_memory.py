@@ -22,7 +22,12 @@ def files_of(pid: int) -> set[str]:
     its peers map the segment too, so mapping does not tell ownership. Read from /proc rather than by
     comparing /dev/shm before and after a start, which would count the files of any other ROS 2 process
     started meanwhile (`make test` runs the Kilted and Jazzy suites at once)."""
-    opened = {Path(fd.readlink()) for fd in Path(f"/proc/{pid}/fd").iterdir() if fd.is_symlink()}
+    opened = set()
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        try:
+            opened.add(fd.readlink())
+        except FileNotFoundError:  # closed since the directory was listed: not one of its segments' locks
+            continue
     locks = {
         path.name
         for path in opened
