@@ -87,6 +87,22 @@ def pytest_sessionfinish(session: pytest.Session) -> None:
         print(f"conftest: killed a process the session left running: {leftover}", file=sys.stderr)
 
 
+# The end of each node's log a failure report shows (characters).
+LOG_TAIL_CHARS = 6000
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Any:
+    """A failed test's report ends with the log of every node process it started: a node's side of a
+    timeout (a fault, a trip, a rejected goal) is otherwise lost with the test's temporary directory."""
+    report = yield
+    rosproc = sys.modules.get("tests.ros.rosproc")
+    if report.failed and rosproc is not None:
+        for proc in rosproc.started():
+            report.sections.append((f"log of {proc.log_path.name}", proc.log()[-LOG_TAIL_CHARS:]))
+    return report
+
+
 @pytest.fixture(autouse=True)
 def _stop_leftover_processes() -> Iterator[None]:
     """After each test, stop the node processes it left running (only tests that started any)."""

@@ -84,6 +84,11 @@ class NodeProcess:
 _started: list[NodeProcess] = []
 
 
+def started() -> list[NodeProcess]:
+    """The node processes started since the last `stop_leftovers` (the running test's)."""
+    return list(_started)
+
+
 def stop_leftovers() -> None:
     """Stop every NodeProcess a test left running (a failed assertion skipped its stop).
 
