@@ -342,7 +342,9 @@ def test_the_driver_on_fake_devices_serves_run_trajectory(tmp_path: Path) -> Non
         handle = peer.send_trajectory(trajectory_goal(trajectory(20, FEEDBACK)))
         assert handle.accepted
         before = len(peer.applied())
-        wait_until(lambda: len(peer.applied()) > before + 30, 30.0, "the trajectory to play")
+        result = handle.get_result_async()
+        wait_until(lambda: len(peer.applied()) > before + 30 or result.done(), 30.0, "the trajectory to play")
+        assert not result.done(), f"the trajectory ended early: {result.result()}"
     finally:
         peer.close()
         code = driver.stop(signal.SIGINT)
