@@ -150,7 +150,6 @@ class _StampingPlant:
 def run_rig_server(seconds: float, sched_fifo: int, seed: int, wiring: str = "") -> Figures:
     """Play `seconds` (s) of babbling through the rig server's run_activations, in one process."""
     import rclpy
-    from rclpy.action import ActionClient
     from rclpy.context import Context
     from rclpy.executors import MultiThreadedExecutor
     from rclpy.node import Node
@@ -158,6 +157,7 @@ def run_rig_server(seconds: float, sched_fifo: int, seed: int, wiring: str = "")
     from g2p.rig.tick_loop import Pacing
     from g2p_interfaces.action import RunActivations
     from g2p_ros import contract
+    from g2p_ros.action_client import ActionClient
     from g2p_ros.rig_server import RigServer
 
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")

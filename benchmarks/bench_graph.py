@@ -32,7 +32,6 @@ from pathlib import Path
 import numpy as np
 import rclpy
 from ament_index_python.packages import get_package_prefix
-from rclpy.action import ActionClient
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
@@ -45,6 +44,7 @@ from g2p.learning.babbling import babbling_activations
 from g2p_interfaces.action import RunActivations
 from g2p_interfaces.msg import MotorActivation, MotorPower, Treadmill
 from g2p_ros import contract
+from g2p_ros.action_client import ActionClient
 
 ROOT = Path(__file__).resolve().parents[1]
 

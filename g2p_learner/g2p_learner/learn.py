@@ -20,7 +20,6 @@ import time
 from typing import NoReturn
 
 from action_msgs.msg import GoalStatus
-from rclpy.action import ActionClient
 from rclpy.executors import Executor
 from rclpy.parameter import Parameter
 from rclpy.utilities import remove_ros_args
@@ -29,6 +28,7 @@ from g2p.rig.closed_loop import ControlMode
 from g2p_interfaces.action import Learn
 from g2p_learner.learner_node import LearnerNode
 from g2p_learner.learner_node import node_parameters as node_parameters  # bringup reads it here
+from g2p_ros.action_client import ActionClient
 from g2p_ros.contract import ServerWatch, action_name, wait_all
 from g2p_ros.executable import run_node
 from g2p_ros.spinner import BackgroundSpinner, MultiThreadedExecutor, wait_for_future

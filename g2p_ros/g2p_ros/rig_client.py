@@ -14,7 +14,6 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from rclpy.action import ActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.client import Client
 from rclpy.node import Node
@@ -27,6 +26,7 @@ from g2p.rig.closed_loop import TrackedRecording, Trajectory
 from g2p.safety import check_activation_sequence
 from g2p_interfaces.action import RunActivations, RunTrajectory
 from g2p_ros import contract
+from g2p_ros.action_client import ActionClient
 from g2p_ros.convert import recording_from_msg, trajectory_from_goal, trajectory_goal
 from g2p_ros.spinner import wait_for_future
 

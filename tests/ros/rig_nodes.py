@@ -13,7 +13,6 @@ from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.action import ActionClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -22,6 +21,7 @@ from g2p.hardware import WiringConfig
 from g2p_interfaces.action import RunActivations, RunTrajectory
 from g2p_interfaces.msg import MotorActivation, MotorPower, RigLimits, Treadmill
 from g2p_ros import contract
+from g2p_ros.action_client import ActionClient
 from g2p_ros.rig_client import RigClient
 from tests.ros.rosproc import NodeProcess, RosPeer, wait_until
 

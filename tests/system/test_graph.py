@@ -15,7 +15,6 @@ from typing import Any
 import numpy as np
 import pytest
 from action_msgs.msg import GoalStatus
-from rclpy.action import ActionClient
 
 from g2p.bags import BagReader
 from g2p.bags.dataset import load_run, load_training_data
@@ -34,6 +33,7 @@ from g2p.sim import MujocoLeg, MujocoLegConfig
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_interfaces.msg import MotorActivation
 from g2p_ros import contract
+from g2p_ros.action_client import ActionClient
 from tests.ros.rosproc import NodeProcess, RosPeer, executable, wait_until
 from tests.viewer.foxglove_client import FoxgloveClient
 

@@ -23,13 +23,13 @@ from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticArray
 from lifecycle_msgs.msg import State, Transition, TransitionEvent
 from lifecycle_msgs.srv import ChangeState, GetState
-from rclpy.action import ActionClient
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from g2p_interfaces.action import RunActivations
 from g2p_interfaces.msg import MotorActivation
 from g2p_ros import contract
+from g2p_ros.action_client import ActionClient
 from g2p_ros.convert import recording_from_msg
 from g2p_ros.params import CONFIG_QOS
 from tests.ros.rig_nodes import BASELINE, DEEP_QOS, at_baseline, is_off, outputs, start_driver

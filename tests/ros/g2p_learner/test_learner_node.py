@@ -14,13 +14,13 @@ from typing import Any
 import pytest
 import rclpy
 from action_msgs.msg import GoalStatus
-from rclpy.action import ActionClient
 from rclpy.parameter import Parameter
 
 from g2p.learning.run_events import Event
 from g2p_interfaces.action import Attempt, Babble, Learn, Track
 from g2p_interfaces.msg import LearnerEvent
 from g2p_learner.learner_node import LearnerNode
+from g2p_ros.action_client import ActionClient
 from g2p_ros.contract import EVENT_QOS
 from g2p_ros.spinner import BackgroundSpinner, MultiThreadedExecutor
 from tests.ros.rosproc import RosPeer, wait_until
