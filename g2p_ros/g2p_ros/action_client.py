@@ -3,10 +3,11 @@
 rclpy's on Jazzy (7.1.6; ros2/rclpy#1123) sends a goal, cancel or result request and only then stores the
 future its response completes. A response taken by the spinning thread in between is dropped ("Ignoring
 unexpected goal response. There may be more than one action server"), and the future never completes:
-a RigClient's goal then timed out on a healthy rig (1 of 34 runs of the driver's trajectory test beside
-the core suite). Kilted's rclpy (9.x) sends and stores under a lock that its `take_data` also holds; this
-class does the same on every distribution (on Kilted the second lock is redundant, and harmless: both
-paths take the two locks in the same order).
+the driver's trajectory test waited 30 s for a goal's response from a healthy rig (1 of 34 runs beside the
+core suite), and a RigClient, called from the learner's threads, is exposed alike. Kilted's rclpy (9.x)
+sends and stores under a lock that its `take_data` also holds; this class does the same on every
+distribution (on Kilted the second lock is redundant, and harmless: both paths take the two locks in the
+same order).
 """
 
 from __future__ import annotations
