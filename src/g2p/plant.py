@@ -148,6 +148,10 @@ class Recording:
         """The ticks at `index` (shape (M,), tick numbers in order) as a new recording."""
         return Recording(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
 
+    def sample(self, k: int) -> TickSample:
+        """Tick `k` as a sample."""
+        return TickSample(**{f.name: getattr(self, f.name)[k] for f in fields(self)})
+
     @property
     def belt_travel_mm(self) -> float:
         """Belt displacement from the end of the first tick to the end of the last (mm, + backward)."""

@@ -196,12 +196,15 @@ def test_evaluate_is_deterministic_on_held_out_episodes() -> None:
 
 
 def test_rl_runs_to_its_budget_of_rig_time_resets_included() -> None:
-    """TQC (no update yet: its first 1,000 steps are random) for 50 s of rig time: its episodes end an
-    episode's ticks and a reset's 1 s apart, and it stops at the step that reaches the budget."""
+    """TQC (no update yet: its first 1,000 steps are random) for 50 s of rig time: each episode lasts its
+    1,600 ticks, or less if the rig trips (random activations can pay cable into a slack tendon until the
+    envelope trips), and a reset's 1 s follows it; it stops at the step that reaches the budget."""
     curve = rl_curve("tqc", 0, 50.0, frame_skip=4)
     times = np.array([e.rig_time_s for e in curve.episodes])
-    assert len(times) == 2 and times[0] == pytest.approx(1600 / 78.0, rel=5e-3)
-    assert times[1] - times[0] == pytest.approx((78 + 1600) / 78.0, rel=5e-3)
+    durations = np.diff(np.r_[-1.0, times]) - 1.0  # between ends, less the reset's 78 ticks (1 s)
+    assert len(times) >= 2 and np.all(durations > 0)
+    assert np.all(durations <= 1600 / 78.0 * (1 + 5e-3))
+    assert np.isclose(durations, 1600 / 78.0, rtol=5e-3).sum() >= 1  # at least one ran its 1,600 ticks
     assert 50.0 <= curve.rig_time_s < 50.0 + 4 / 78.0 + 0.01
     assert curve.policy is not None and curve.frame_skip == 4
 
@@ -220,9 +223,13 @@ def test_g2p_searches_on_after_the_papers_stop_and_g2p_then_rl_starts_from_its_g
     np.testing.assert_allclose(np.diff(times), (78 + 1600) / 78.0, rtol=5e-3)
     both = g2p_then_rl_curve(1, g2p.marks["paper_stop_s"] + 60.0, learner_config=learner)
     assert both.marks == g2p.marks
-    n = sum(t <= g2p.marks["paper_stop_s"] for t in times)
+    # G2P's episodes up to the one that ended at the paper's stop (the mark is that episode's end, summed
+    # otherwise than the episodes' times: equal to within rounding, not bit for bit).
+    n = int(np.argmin(np.abs(times - g2p.marks["paper_stop_s"]))) + 1
+    assert times[n - 1] == pytest.approx(g2p.marks["paper_stop_s"], abs=1e-6)
     assert [e.reward_mm for e in both.episodes[:n]] == [e.reward_mm for e in g2p.episodes[:n]]
-    assert len(both.episodes) == n + 2  # then PPO's episodes, on until the budget
+    # Then PPO's episodes (1600 ticks and a reset each, 21.5 s) on until the budget: two whole ones in 60 s.
+    assert len(both.episodes) == n + 2
     assert both.rig_time_s >= g2p.marks["paper_stop_s"] + 60.0
 
 

@@ -101,11 +101,11 @@ def test_treadmill_reward_is_the_belt_travel_the_plant_reports() -> None:
     plant = MujocoLeg(config)
     rest = last = plant.reset_episode(seeding.np_random(seed)[0], env.reset_noise_scale)
     envelope = SafetyEnvelope()
-    envelope.observe(rest.t_s, rest.activation)
+    envelope.observe(rest, at_rest=True)
     for a in np.repeat(actions.astype(np.float64), frame_skip, axis=0):
         applied = envelope.limit(a, last.position_rad, last.velocity_rad_s).applied
         last = plant.step(applied)
-        envelope.observe(last.t_s, last.activation)
+        envelope.observe(last)
     travel = last.belt_mm - rest.belt_mm
     used = float(np.sum(last.energy_j - rest.energy_j))
     assert abs(travel) > 0.1  # the episode moved the belt: the comparison is not 0 == 0

@@ -13,6 +13,7 @@ import pytest
 
 from g2p.plant import hold
 from g2p.rig.envelope import JOINT_STOPS_RAD, WindingRating
+from g2p.rig.tendons import TENDON_ARMS_M, DriveRating
 from g2p.sim import ModelError, MujocoLeg, MujocoLegConfig, packaged_model_path
 from g2p.sim.limits import COOLDOWN_HYSTERESIS_K, NUMERICS, available_current_a
 
@@ -127,6 +128,14 @@ def test_the_envelopes_rated_values_are_the_simulated_rigs(air_plant: MujocoLeg)
     assert rating.ambient_c == limits.ambient_c
     for name, stops in zip(("proximal", "distal"), JOINT_STOPS_RAD, strict=True):
         np.testing.assert_allclose(model.jnt_range[model.joint(name).id], stops, atol=1e-12)
+    motor, drive = air_plant.leg_model.motor, DriveRating()
+    assert (drive.kt_nm_per_a, drive.resistance_ohm, drive.spool_radius_m) == (
+        motor.kt_nm_per_a,
+        motor.resistance_ohm,
+        motor.spool_radius_m,
+    )
+    np.testing.assert_array_equal(model.tendon_stiffness[:3], drive.tendon_stiffness_n_per_m)
+    np.testing.assert_allclose(air_plant._tendon_joint_arms(), TENDON_ARMS_M, atol=1e-12)
 
 
 def without_numerics(tmp_path: Path, names: Iterable[str]) -> Path:

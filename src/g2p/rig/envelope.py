@@ -8,14 +8,16 @@ same rules:
 - **Soft joint limits** (ros2_control's joint_limits soft limits are the model): while a client drives
   the rig (a motor above baseline), a joint may move toward a stop at no more than
   `impact_speed_rad_s + k_position * (distance ahead - margin)`. Beyond that speed the tendons that drive
-  it there are scaled down toward baseline, by `k_velocity` per rad/s of excess.
-- **A ramp for steps** (the torque ramp of a motor driver, as ODrive's and VESC's): a motor's activation
-  rises by at most `max_step` in one tick, and a motor still short of a larger step climbs on at
-  `ramp_per_tick`; falls pass at once. A command that rises smoothly (G2P's limit cycles rise by about
-  0.17 a tick at the 99th percentile) passes; a stair step from baseline to 1 (babbling, a square wave)
-  takes 12 ticks. Every tendon stepped at once (a square wave: one let go as two pull) throws the shank
-  into its stop faster than a rule acting on measured speeds can brake it, one tick late and behind the
-  motors' lag; the ramp spreads the step.
+  it there are scaled down toward baseline, by `k_velocity` per rad/s of excess. Acting on measured speeds,
+  one tick late and behind the motors' 30 ms lag, this holds the entries of G2P's own cycles but not an
+  adversary's (docs/SIMULATOR.md, "The safety envelope").
+- **A ramp** (the torque ramp of a motor driver, as ODrive's and VESC's), as a rate limit: over any n
+  consecutive ticks a motor's applied activation rises by at most `max_step + ramp_per_tick * (n - 1)`,
+  whatever the commands (a token bucket of `max_step`, refilled by `ramp_per_tick` a tick); falls pass
+  at once. A stair step from baseline to 1 (babbling, a square wave) takes 12 ticks, and so does any
+  sequence of smaller steps. Every tendon stepped at once (a square wave: one let go as two pull) throws
+  the shank into its stop faster than a rule acting on measured speeds can brake it, one tick late and
+  behind the motors' lag; the ramp spreads the step.
 - **A thermal budget per motor** (I^2 t, as motor drivers protect windings): each winding's temperature is
   estimated with the rated first-order thermal model from the current its current-mode driver regulates,
   the applied activation times the current at activation 1. The supply voltage only lowers the true
@@ -36,7 +38,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from g2p.plant import Recording, first_order_temperature
+from g2p.plant import Recording, TickSample, first_order_temperature
+from g2p.rig.tendons import TENDON_ARMS_M, DriveRating, TendonEstimate
 from g2p.safety import BASELINE_ACTIVATION, N_MOTORS
 from g2p.validation import require
 
@@ -44,8 +47,9 @@ FloatArray = NDArray[np.float64]
 
 # Which way each tendon turns each joint when it pulls (the paper's Fig 1d): +1 toward positive angles
 # (counter-clockwise), -1 toward negative ones, 0 not at all. Rows M0, M1, M2; columns proximal, distal.
-# M1 turns the hip ccw only; M0 the hip cw and the knee ccw; M2 both cw.
-TENDON_DIRECTIONS = np.array([[-1.0, 1.0], [1.0, 0.0], [-1.0, -1.0]])
+# M1 turns the hip ccw only; M0 the hip cw and the knee ccw; M2 both cw. A pulling tendon shortens, so it
+# turns each joint against the sign of its length's coefficient.
+TENDON_DIRECTIONS = -np.sign(TENDON_ARMS_M) + 0.0  # + 0.0: no -0.0
 # The joints' stops (rad): the hip +-55 deg, the knee -100..0 deg (g2p/description/models/leg.xml; a test
 # checks).
 JOINT_STOPS_RAD = ((-math.radians(55.0), math.radians(55.0)), (-math.radians(100.0), 0.0))
@@ -85,10 +89,15 @@ class EnvelopeConfig:
         horizon_s: the distance is taken where the joint will be this much later at its speed (s): the
             tick's delay and the motors' lag.
         k_velocity: the excess's measure per rad/s above the allowed speed (s/rad); 1 = full.
-        max_step: the most a motor's activation rises in one tick (dimensionless); 1 = no ramp.
-        ramp_per_tick: the rise per tick of a motor still short of a step larger than `max_step`
-            (dimensionless; 0.06 at 78 Hz is 4.7 /s).
+        drive: the motors', spools' and tendons' rated constants (the tendon estimate's).
+        max_step: the most a motor's activation rises in one tick, the ramp's bucket (dimensionless);
+            1 = no ramp.
+        ramp_per_tick: the sustained rise per tick, the bucket's refill (dimensionless; 0.06 at 78 Hz is
+            4.7 /s).
         winding: the motors' rated thermal model.
+        slack_trip_m: the cable estimated in a slack tendon's loop (g2p.rig.tendons) that trips the rig
+            (m): a tendon leaves its channel at 60 mm, and a loop can grow by about 10 mm in a tick; the
+            estimate errs 5-15 mm high, never low.
         derate_start_c: estimated winding temperature from which a motor is derated (deg C).
         derate_full_c: estimated winding temperature at which a motor is held at baseline (deg C).
         trip_c: estimated winding temperature that trips the rig (deg C): the drivers' cut-out, which
@@ -106,6 +115,8 @@ class EnvelopeConfig:
     max_step: float = 0.2
     ramp_per_tick: float = 0.06
     winding: WindingRating = field(default_factory=WindingRating)
+    drive: DriveRating = field(default_factory=DriveRating)
+    slack_trip_m: float = 0.050
     derate_start_c: float = 72.0
     derate_full_c: float = 78.0
     trip_c: float = 80.0
@@ -123,6 +134,7 @@ class EnvelopeConfig:
         ):
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value}")
+        require(self.slack_trip_m > 0, "slack_trip_m", f"must be > 0, got {self.slack_trip_m}")
         for name in ("max_step", "ramp_per_tick"):
             value = getattr(self, name)
             require(0 < value <= 1, name, f"must be in (0, 1], got {value}")
@@ -181,12 +193,15 @@ class SafetyEnvelope:
         self._last_t_s: float | None = None
         # The motors' activation over the last tick: a rig starts at baseline.
         self._last_activation = np.full(N_MOTORS, baseline_activation)
-        self._short = np.zeros(N_MOTORS, dtype=bool)  # motors the ramp held below their last command
+        # The ramp's bucket per motor: the most each may rise in the coming tick beyond its last activation.
+        self._credit = np.full(N_MOTORS, config.max_step)
+        self.tendons = TendonEstimate(config.drive)
+        """Each tendon's length, tension and slack loop, from what the rig measures (g2p.rig.tendons)."""
 
     def limit(
         self, activation: FloatArray, position_rad: FloatArray | None, velocity_rad_s: FloatArray | None
     ) -> EnvelopeAction:
-        """The activation to apply during the coming tick; call it once a tick (the ramp keeps count).
+        """The activation to apply during the coming tick (the envelope's state changes in `observe`).
 
         Args:
             activation: the activation decided (3,); clipped to [baseline, 1] first, as the plant would.
@@ -217,9 +232,7 @@ class SafetyEnvelope:
         scale = joint_scale * thermal_scale
         # Untouched motors keep their activation bit for bit: (a - base) + base need not equal a.
         applied = np.where(scale < 1.0, base + (activation - base) * scale, activation)
-        rise = np.where(self._short, min(cfg.ramp_per_tick, cfg.max_step), cfg.max_step)
-        ramp_cap = np.minimum(self._last_activation + rise, 1.0)
-        self._short = applied > ramp_cap
+        ramp_cap = np.minimum(self._last_activation + self._credit, 1.0)
         applied = np.minimum(applied, ramp_cap)
         return EnvelopeAction(
             commanded=activation.copy(),
@@ -232,30 +245,56 @@ class SafetyEnvelope:
 
     @property
     def trip(self) -> str:
-        """Why the envelope trips the rig ("" when it does not): a winding estimated at its cut-out."""
-        hot = np.flatnonzero(self.winding_c >= self.config.trip_c)
-        if not hot.size:
-            return ""
-        return ", ".join(
-            f"M{i}'s winding estimated at {self.winding_c[i]:.1f} degC (cut-out {self.config.trip_c:g})"
-            for i in hot
-        )
+        """Why the envelope trips the rig ("" when it does not).
 
-    def observe(self, t_s: float, activation: FloatArray) -> None:
-        """Account for a tick that ended at `t_s` (s, plant clock), its motors at `activation` (3,).
+        A winding estimated at its cut-out, or a slack loop estimated beyond `slack_trip_m`.
+        """
+        cfg = self.config
+        reasons = [
+            f"M{i}'s winding estimated at {self.winding_c[i]:.1f} degC (cut-out {cfg.trip_c:g})"
+            for i in np.flatnonzero(self.winding_c >= cfg.trip_c)
+        ]
+        loops = self.tendons.loop_m
+        reasons += [
+            f"tendon M{i}: an estimated {1000 * loops[i]:.0f} mm of cable paid into its slack loop "
+            f"(trips at {1000 * cfg.slack_trip_m:g} mm, before it leaves its channel)"
+            for i in np.flatnonzero(loops > cfg.slack_trip_m)
+        ]
+        return ", ".join(reasons)
+
+    def observe(self, sample: TickSample, at_rest: bool = False) -> None:
+        """Account for a tick the rig measured.
+
+        Its end `t_s`, the activations applied over it (the ramp, the thermal estimate), the motors' current
+        and power and the joints' velocities (the tendon estimate).
+
+        Args:
+            sample: the tick's sample.
+            at_rest: the sample is a reset's (no tick behind it): the tendon estimate starts again there.
 
         The first observation (and one whose time goes back) only sets the clock.
         """
-        last, self._last_t_s = self._last_t_s, t_s
-        self._last_activation = np.array(activation, dtype=np.float64)
-        if last is None or t_s <= last:
+        last, self._last_t_s = self._last_t_s, sample.t_s
+        activation = np.array(sample.activation, dtype=np.float64)
+        # A rise spends the ramp's bucket, a fall refills it, and every tick adds ramp_per_tick, up to
+        # max_step: then the rise over any n ticks is at most max_step + ramp_per_tick * (n - 1).
+        cfg = self.config
+        spent = activation - self._last_activation
+        self._credit = np.clip(self._credit - spent + cfg.ramp_per_tick, 0.0, cfg.max_step)
+        self._last_activation = activation
+        if at_rest:
+            self.tendons.reset()
+        dt_s = 0.0 if last is None else sample.t_s - last
+        if not at_rest and dt_s >= 0:  # the first observation starts the estimate
+            self.tendons.update(dt_s, sample.current_a, sample.power_w, sample.velocity_rad_s)
+        if dt_s <= 0:
             return
         w = self.config.winding
         current_a = activation * w.max_current_a
         self.winding_c = first_order_temperature(
             self.winding_c,
             current_a * current_a * w.resistance_ohm,
-            t_s - last,
+            dt_s,
             w.thermal_resistance_k_per_w,
             w.time_constant_s,
             w.ambient_c,
@@ -285,7 +324,7 @@ def replay(decided: FloatArray, ticks: Recording, config: EnvelopeConfig = Envel
     for k, activation in enumerate(decided):
         before = k + lead - 1  # the tick the rig had when it decided tick k
         if before >= 0:
-            envelope.observe(float(ticks.t_s[before]), ticks.activation[before])
+            envelope.observe(ticks.sample(before))
             applied[k] = envelope.limit(
                 activation, ticks.position_rad[before], ticks.velocity_rad_s[before]
             ).applied
@@ -319,3 +358,16 @@ def stop_entry_speeds(
     entered = np.flatnonzero(at[1:] & ~at[:-1]) + 1
     speeds: FloatArray = np.abs(velocity_rad_s[entered])
     return speeds
+
+
+def fastest_stop_entries(recording: Recording) -> FloatArray:
+    """Each joint's fastest entry into its stops over a recording (`stop_entry_speeds`).
+
+    Returns:
+        (hip, knee), shape (2,) (rad/s; 0 for a joint that never entered a stop).
+    """
+    fastest = np.zeros(len(JOINT_STOPS_RAD))
+    for j, stops in enumerate(JOINT_STOPS_RAD):
+        entries = stop_entry_speeds(recording.position_rad[:, j], recording.velocity_rad_s[:, j], stops)
+        fastest[j] = entries.max() if entries.size else 0.0
+    return fastest

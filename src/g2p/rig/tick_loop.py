@@ -388,7 +388,7 @@ class TickLoop:
             None if last is None else last.velocity_rad_s,
         )
         sample = _on_grid(self.plant.step(action.applied))
-        self.envelope.observe(sample.t_s, sample.activation)
+        self.envelope.observe(sample)
         self._last = sample
         if action.acted:
             self.counters.envelope_ticks += 1
@@ -468,7 +468,7 @@ class TickLoop:
             raise
         self.gate.stop()
         self._last = sample
-        self.envelope.observe(sample.t_s, sample.activation)  # the time a tripped rig took to cool
+        self.envelope.observe(sample, at_rest=True)  # the time a tripped rig took to cool
         was, self.trip = self.trip, getattr(self.plant, "fault", "") or self.envelope.trip
         if self.trip:
             req.success, req.message = False, f"rig still tripped: {self.trip}"

@@ -327,6 +327,11 @@ class MujocoLeg:
         return self._winding_c.copy()
 
     @property
+    def slack_payout_m(self) -> FloatArray:
+        """The cable each spool has paid into its slack tendon now, shape (3,) (m; 0 for a taut tendon)."""
+        return self._slack_payout_m.copy()
+
+    @property
     def peak_tension_n(self) -> FloatArray:
         """The tendons' highest tension over the sub-steps of the last tick, shape (3,) (N)."""
         return self._peak_tension_n.copy()

@@ -169,7 +169,7 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
                 self._envelope = SafetyEnvelope()  # the windings start at ambient, as reset_episode's
             self._last = self.plant.reset_episode(self.np_random, self.reset_noise_scale, keep_heat=warm)
             assert self._envelope is not None
-            self._envelope.observe(self._last.t_s, self._last.activation)
+            self._envelope.observe(self._last, at_rest=True)
         else:
             self._last = self.plant.reset()
         self.ticks = 0
@@ -246,7 +246,7 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         else:
             action = envelope.limit(commanded, last.position_rad, last.velocity_rad_s)
             sample = self.plant.step(action.applied)
-            envelope.observe(sample.t_s, sample.activation)
+            envelope.observe(sample)
             self._trip = envelope.trip
         self._trip = getattr(self.plant, "fault", "") or self._trip
         return sample
@@ -255,7 +255,7 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         """A reset's rig time: put a tripped rig right, then hold baseline for `reset_s` (simulated rig)."""
         assert isinstance(self.plant, MujocoLeg) and self._envelope is not None
         last = self.plant.reset()
-        self._envelope.observe(last.t_s, last.activation)  # the time a tripped rig took to cool
+        self._envelope.observe(last, at_rest=True)  # the time a tripped rig took to cool
         for _ in range(round(self.reset_s * self.plant.tick_hz)):
             last = self._tick(np.full(N_MOTORS, BASELINE_ACTIVATION), last)
 
