@@ -117,6 +117,8 @@ def summarize(results: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
         out["max_refine_s"] = float(np.max([s for r in t for s in r["refine_s"]]))
         out["median_refine_s"] = float(np.median([s for r in t for s in r["refine_s"]]))
         out["median_run_wall_s"] = float(np.median([r["wall_s"] for r in t]))
+        entries = np.array([e for r in t for e in r["stop_entry_rad_s"]])
+        out["max_stop_entry_rad_s"] = entries.max(axis=0).tolist()  # (hip, knee) over every attempt
     a = results.get("air", [])
     if a:
         ratios = [r["ratio"] for r in a]
@@ -207,6 +209,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=15)
     parser.add_argument(
+        "--first-seed", type=int, default=0, help="the seeds are FIRST_SEED, FIRST_SEED + 1, ..."
+    )
+    parser.add_argument(
         "--workers", type=int, default=None, help="local Ray: CPUs to use, one run each (default: all)"
     )
     parser.add_argument(
@@ -254,7 +259,10 @@ def main() -> None:
         for name in experiments:
             sweep = run_sweep(
                 partial(run_experiment, setup=setup),
-                [{"experiment": name, "seed": seed} for seed in range(args.seeds)],
+                [
+                    {"experiment": name, "seed": seed}
+                    for seed in range(args.first_seed, args.first_seed + args.seeds)
+                ],
                 desc=name,
             )
             sweeps.append(sweep)

@@ -17,7 +17,7 @@ from g2p.learning.learner import Learner, LearnerConfig
 from g2p.learning.limit_cycle import AIR_FEATURE_BOUNDS, LimitCycleConfig
 from g2p.learning.search import SearchConfig
 from g2p.rig import PlantRig
-from g2p.rig.envelope import EnvelopeConfig
+from g2p.rig.envelope import EnvelopeConfig, fastest_stop_entries
 from g2p.rig.tick_loop import TickLoopConfig
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, MujocoLeg, MujocoLegConfig
 
@@ -102,6 +102,8 @@ def treadmill(seed: int, setup: Setup = Setup()) -> dict[str, Any]:
         "rewards_mm": rewards,
         "energies_j": [r.outcome.energy_j for r in result.reports],
         "tracking_rmse_rad": [r.outcome.tracking.rmse_rad for r in result.reports],
+        # Each attempt's fastest (hip, knee) entry into the joint stops: what the envelope may not cut.
+        "stop_entry_rad_s": [fastest_stop_entries(r.outcome.recording).tolist() for r in result.reports],
         "phases": [r.phase.value for r in result.reports],
         "fit_s": result.babbling_fit.seconds,
         "refine_s": [r.fit.seconds for r in result.reports if r.fit is not None],
