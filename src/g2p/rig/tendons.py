@@ -45,7 +45,7 @@ class DriveRating:
         spool_radius_m: spool radius (m).
         tendon_stiffness_n_per_m: each tendon's series stiffness (N/m).
         anchor_per_tick: how far each tick draws the estimated length toward the stretch the current holds
-            (dimensionless, (0, 1]).
+            (dimensionless, above 0 and at most 1).
     """
 
     kt_nm_per_a: float = 0.075
