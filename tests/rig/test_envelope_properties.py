@@ -36,6 +36,33 @@ PROPERTY = settings(
 )
 
 
+def observe(
+    envelope: SafetyEnvelope,
+    t_s: float,
+    applied: np.ndarray,
+    position: np.ndarray,
+    velocity: np.ndarray,
+    spool_speed: np.ndarray,
+) -> None:
+    """Let `envelope` observe a tick that ended at `t_s` with `applied`, its motors' readings those of
+    spools turning at `spool_speed` (rad/s) under the current the drivers regulate."""
+    rating = envelope.config.drive
+    current = applied * WindingRating().max_current_a
+    envelope.observe(
+        TickSample(
+            t_s=t_s,
+            activation=applied,
+            position_rad=position,
+            velocity_rad_s=velocity,
+            belt_mm=0.0,
+            belt_velocity_mm_s=0.0,
+            current_a=current,
+            power_w=current**2 * rating.resistance_ohm + rating.kt_nm_per_a * current * spool_speed,
+            energy_j=np.zeros(3),
+        )
+    )
+
+
 def play(
     command: np.ndarray,
     position: np.ndarray,
@@ -45,28 +72,13 @@ def play(
 ) -> np.ndarray:
     """Each tick's applied activation through one envelope, shape (TICKS, 3)."""
     envelope = SafetyEnvelope(CONFIG)
-    rating = CONFIG.drive
     applied = []
     t_s = 0.0
     for k in range(TICKS):
         limited = envelope.limit(command[k], position[k], velocity[k]).applied
         applied.append(limited)
         t_s += float(tick_s[k])
-        current = limited * WindingRating().max_current_a
-        power = current**2 * rating.resistance_ohm + rating.kt_nm_per_a * current * spool_speed[k]
-        envelope.observe(
-            TickSample(
-                t_s=t_s,
-                activation=limited,
-                position_rad=position[k],
-                velocity_rad_s=velocity[k],
-                belt_mm=0.0,
-                belt_velocity_mm_s=0.0,
-                current_a=current,
-                power_w=power,
-                energy_j=np.zeros(3),
-            )
-        )
+        observe(envelope, t_s, limited, position[k], velocity[k], spool_speed[k])
     return np.array(applied)
 
 
@@ -142,16 +154,4 @@ def test_a_command_the_rules_leave_alone_passes_bit_for_bit(
         action = envelope.limit(command[k], position[k], velocity[k])
         assert np.array_equal(action.applied, command[k]), k
         t_s += float(tick_s[k])
-        envelope.observe(
-            TickSample(
-                t_s=t_s,
-                activation=action.applied,
-                position_rad=position[k],
-                velocity_rad_s=velocity[k],
-                belt_mm=0.0,
-                belt_velocity_mm_s=0.0,
-                current_a=action.applied * WindingRating().max_current_a,
-                power_w=np.zeros(3),
-                energy_j=np.zeros(3),
-            )
-        )
+        observe(envelope, t_s, action.applied, position[k], velocity[k], spool_speed[k])
