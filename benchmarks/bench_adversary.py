@@ -1,15 +1,18 @@
-"""An adversary against the rig's safety envelope: searched patterns and plain square waves, on many legs.
+"""An adversary against the rig's safety envelope: searched sequences and plain square waves, on many legs.
 
 For each objective (`--objectives`: slack = cable paid into a slack tendon, impact = the fastest entry
-into a joint's stop, tension = a tendon's peak), a black-box search (g2p.adversary.search: scipy's
-differential evolution over periodic patterns, each played for `--seconds` through the in-process rig
-with the envelope) looks for the most harm on leg seed 0; its best pattern is then replayed on
-`--leg-seeds` leg seeds. Beside them, the known attacks the search starts from: the 0.97 Hz two-phase
-square wave and the 4 Hz square wave of M0 against M1, each as a stair step and with its rises spread to
-0.2 a tick. Prints JSON: per attack and leg seed, the harm (g2p.adversary.harm.Harm), and a summary.
+into a joint's stop, tension = a tendon's peak) and each space (`--spaces`: periodic patterns, free step
+sequences), a black-box search (g2p.adversary.search: CMA-ES with restarts, `--evaluations` sequences
+each played for `--seconds` through the in-process rig with the envelope) looks for the most harm on leg
+seed 0; its best sequence is then replayed on `--leg-seeds` leg seeds through `PlantRig` and as episodes
+of the Gymnasium environment `g2p/Treadmill-v0` run as the RL baselines run it. Beside them, the known
+attacks: the 0.97 Hz two-phase square wave and the 4 Hz square wave of M0 against M1, each as a stair
+step and with its rises spread to 0.2 a tick. `--calibration paper` attacks `sim_paper`. Prints JSON:
+per attack, path and leg seed, the harm (g2p.adversary.harm.Harm), a summary, and the episodes played.
 
-    python benchmarks/bench_adversary.py [--objectives slack,impact,tension] [--generations 8]
-        [--population 5] [--seconds 20] [--leg-seeds 10] [--set envelope.FIELD=VALUE ...] [--out F.json]
+    python benchmarks/bench_adversary.py [--objectives slack,impact,tension] [--spaces periodic,steps]
+        [--evaluations 60] [--seconds 20] [--leg-seeds 10] [--calibration paper]
+        [--set envelope.FIELD=VALUE ...] [--out F.json]
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ import numpy as np
 from setups import parse_override
 
 from g2p.adversary.harm import Harm
-from g2p.adversary.patterns import known_attacks
+from g2p.adversary.patterns import SPACES, known_attacks
 from g2p.adversary.search import OBJECTIVES, replay, search
 from g2p.plant import NOMINAL_TICK_HZ
 from g2p.rig.envelope import EnvelopeConfig
@@ -55,45 +58,64 @@ def main() -> None:
     """Run the attacks and print their figures as JSON."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--objectives", default=",".join(OBJECTIVES))
-    parser.add_argument("--generations", type=int, default=8)
-    parser.add_argument("--population", type=int, default=5)
+    parser.add_argument("--spaces", default=",".join(SPACES))
+    parser.add_argument("--evaluations", type=int, default=60, help="sequences played per search")
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--leg-seeds", type=int, default=10)
     parser.add_argument("--search-seed", type=int, default=0)
+    parser.add_argument("--calibration", default="", help='the simulated rig: "" (default) or "paper"')
     parser.add_argument("--set", action="append", default=[], type=parse_override, dest="overrides")
     parser.add_argument("--out", default="", help="also write the JSON here")
     args = parser.parse_args()
     fields = {name: value for section, name, value in args.overrides if section == "envelope"}
     envelope = EnvelopeConfig(**fields)
     seeds = range(args.leg_seeds)
-    out: dict[str, Any] = {"envelope": fields, "attacks": {}}
+    out: dict[str, Any] = {
+        "envelope": fields,
+        "calibration": args.calibration,
+        "seconds": args.seconds,
+        "episodes": 0,
+        "attacks": {},
+    }
 
-    def record(name: str, harms: list[Harm], extra: dict[str, Any]) -> None:
-        out["attacks"][name] = {**extra, "summary": summary(harms), "per_seed": [asdict(h) for h in harms]}
-        print(json.dumps({name: out["attacks"][name]["summary"]}), flush=True)
+    def record(name: str, activations: np.ndarray, extra: dict[str, Any]) -> None:
+        entry: dict[str, Any] = dict(extra)
+        for path, through_env in (("rig", False), ("env", True)):
+            harms = replay(activations, envelope, seeds, args.calibration, through_env)
+            out["episodes"] += len(harms)
+            entry[path] = {"summary": summary(harms), "per_seed": [asdict(h) for h in harms]}
+        out["attacks"][name] = entry
+        print(json.dumps({name: {p: entry[p]["summary"] for p in ("rig", "env")}}), flush=True)
         if args.out:
             with open(args.out, "w") as f:
                 json.dump(out, f, indent=1)
 
-    for name, pattern in fixed_attacks(args.seconds).items():
-        record(name, replay(pattern, envelope, seeds), {})
-    for objective in [o for o in args.objectives.split(",") if o]:
-        t0 = time.perf_counter()
-        attack = search(
-            envelope,
-            objective,
-            seed=args.search_seed,
-            seconds=args.seconds,
-            generations=args.generations,
-            population=args.population,
-        )
-        pattern = attack.pattern.activations(args.seconds, NOMINAL_TICK_HZ)
-        extra = {
-            "pattern": attack.pattern.describe(),
-            "evaluations": attack.evaluations,
-            "search_s": round(time.perf_counter() - t0),
-        }
-        record(f"searched_{objective}", replay(pattern, envelope, seeds), extra)
+    for name, activations in fixed_attacks(args.seconds).items():
+        record(name, activations, {})
+    for space in [s for s in args.spaces.split(",") if s]:
+        for objective in [o for o in args.objectives.split(",") if o]:
+            t0 = time.perf_counter()
+            attack = search(
+                envelope,
+                objective,
+                space,
+                seed=args.search_seed,
+                seconds=args.seconds,
+                evaluations=args.evaluations,
+                calibration=args.calibration,
+            )
+            out["episodes"] += attack.evaluations
+            extra = {
+                "sequence": attack.sequence.describe(),
+                "evaluations": attack.evaluations,
+                "restarts": attack.restarts,
+                "search_s": round(time.perf_counter() - t0),
+            }
+            record(
+                f"searched_{space}_{objective}",
+                attack.sequence.activations(args.seconds, NOMINAL_TICK_HZ),
+                extra,
+            )
 
 
 if __name__ == "__main__":

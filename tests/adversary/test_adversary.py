@@ -5,13 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from g2p.adversary.harm import play_harm
+from g2p.adversary.harm import play_harm, play_harm_in_env
 from g2p.adversary.patterns import (
     DUTY_RANGE,
+    HOLD_RANGE_TICKS,
     N_PARAMETERS,
     PERIOD_RANGE_S,
     RISE_RANGE,
     Pattern,
+    StepSequence,
     known_attacks,
     rising_by,
     square_wave,
@@ -93,15 +95,56 @@ def test_baseline_does_no_harm() -> None:
     assert harm.score("slack", LIMITS) < 0.02
 
 
-def test_a_search_is_its_seeds_and_reports_what_its_best_pattern_does() -> None:
+def test_a_step_sequence_loops_its_steps_each_held_its_ticks() -> None:
+    x = np.linspace(0.0, 1.0, StepSequence.n_parameters)
+    steps = StepSequence.from_unit(x)
+    assert steps.levels[0, 0] == BASELINE_ACTIVATION  # x[0] = 0; the last of 48 levels is x[47] = 47/48
+    assert steps.levels[-1, -1] == pytest.approx(BASELINE_ACTIVATION + 47 / 48 * (1 - BASELINE_ACTIVATION))
+    assert steps.hold_ticks == HOLD_RANGE_TICKS[1]  # x[48] = 1
+    np.testing.assert_allclose(StepSequence.from_unit(steps.to_unit()).levels, steps.levels, atol=1e-12)
+    held = StepSequence(levels=steps.levels, hold_ticks=3)
+    a = held.activations(1.0, NOMINAL_TICK_HZ)
+    assert a.shape == (78, 3)
+    np.testing.assert_array_equal(a[:6], np.repeat(steps.levels[:2], 3, axis=0))
+    np.testing.assert_array_equal(a[48:78], a[:30])  # the 48-tick loop again
+    with pytest.raises(ConfigError, match="hold_ticks"):
+        StepSequence(levels=steps.levels, hold_ticks=0)
+    with pytest.raises(ConfigError, match="levels"):
+        StepSequence(levels=np.zeros((16, 3)), hold_ticks=1)
+
+
+def test_the_gymnasium_path_plays_the_same_rules() -> None:
+    # The environment plays each action a tick late from a noisy rest (RIG_AS_IT_RUNS), through the envelope
+    # it is given: baseline does no harm there either, and its rules blunt the 4 Hz blows as the rig's do.
+    rest = play_harm_in_env(np.full((78, 3), BASELINE_ACTIVATION), EnvelopeConfig())
+    assert rest.ticks == 78 and rest.fault == rest.trip == "" and rest.envelope_ticks == 0
+    assert max(rest.peak_tension_n) < 15.0
+    pattern = rising_by(square_wave(10.0, NOMINAL_TICK_HZ, 4.0, (1, 0.15, 0.15), (0.15, 1, 0.15)), 0.2)
+    bare, guarded = play_harm_in_env(pattern, THERMAL_ONLY), play_harm_in_env(pattern, EnvelopeConfig())
+    assert bare.entry_speed_rad_s[1] > 25.0
+    assert guarded.entry_speed_rad_s[1] < 0.8 * bare.entry_speed_rad_s[1]
+    assert bare.envelope_ticks == 0 < guarded.envelope_ticks
+
+
+@pytest.mark.parametrize("space", ["periodic", "steps"])
+def test_a_search_is_its_seeds_and_reports_what_its_best_sequence_does(space: str) -> None:
     def tiny(seed: int) -> Attack:
-        return search(THERMAL_ONLY, "impact", seed=seed, seconds=1.0, generations=1, population=1)
+        return search(THERMAL_ONLY, "impact", space, seed=seed, seconds=1.0, evaluations=20)
 
     first, again = tiny(0), tiny(0)
-    for name in ("period_s", "phase", "duty", "level", "rise"):
-        np.testing.assert_array_equal(getattr(first.pattern, name), getattr(again.pattern, name))
+    np.testing.assert_array_equal(first.sequence.to_unit(), again.sequence.to_unit())
     assert first.harm == again.harm
-    assert first.evaluations == 2 * 16  # a first population (15, Sobol rounds it to 16), one generation
-    assert play_harm(first.pattern.activations(1.0, NOMINAL_TICK_HZ), THERMAL_ONLY) == first.harm
+    # Whole CMA-ES generations (4 + 3 ln n candidates: 12 periodic, 15 steps), after the periodic space's
+    # 4 known attacks.
+    assert first.evaluations == {"periodic": 4 + 2 * 12, "steps": 2 * 15}[space]
+    assert play_harm(first.sequence.activations(1.0, NOMINAL_TICK_HZ), THERMAL_ONLY) == first.harm
+    if space == "periodic":  # it starts from the known attacks, so it finds at least their harm
+        best_known = max(
+            play_harm(p.activations(1.0, NOMINAL_TICK_HZ), THERMAL_ONLY).score("impact", LIMITS)
+            for p in known_attacks().values()
+        )
+        assert first.harm.score("impact", LIMITS) >= best_known
     with pytest.raises(ValueError, match="objective"):
         search(THERMAL_ONLY, "fun")
+    with pytest.raises(ValueError, match="space"):
+        search(THERMAL_ONLY, "impact", "anything")

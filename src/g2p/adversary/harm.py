@@ -1,8 +1,10 @@
 """What a pattern does to the simulated leg through a rig's tick loop and envelope.
 
 `MeteredLeg` keeps the physics' own readings of each tick (sub-step tension peaks, the cable paid into
-each slack tendon), which no real rig measures; `play_harm` plays a pattern through `PlantRig` (the tick
-loop with its envelope) over one, and `Harm` sums up how close it came to breaking the leg.
+each slack tendon), which no real rig measures; `play_harm` plays a sequence through `PlantRig` (the tick
+loop with its envelope) over one, `play_harm_in_env` through the Gymnasium environment `g2p/Treadmill-v0`
+as the RL baselines run it (RIG_AS_IT_RUNS: the action a tick late, a reset's rig time), and `Harm` sums up
+how close it came to breaking the leg.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from g2p.plant import FloatArray, Recording, TickSample
 from g2p.rig import PlantRig, RigError
 from g2p.rig.envelope import JOINT_STOPS_RAD, EnvelopeConfig, stop_entry_speeds
 from g2p.rig.tick_loop import TickLoopConfig
+from g2p.safety import BASELINE_ACTIVATION
 from g2p.sim import MujocoLeg, MujocoLegConfig
 
 JOINTS = ("hip", "knee")
@@ -115,12 +118,20 @@ def measure(meter: MeteredLeg, fault: str, trip: str, envelope_ticks: int) -> Ha
     )
 
 
-def play_harm(activations: FloatArray, envelope: EnvelopeConfig, leg_seed: int = 0) -> Harm:
+def play_harm(
+    activations: FloatArray, envelope: EnvelopeConfig, leg_seed: int = 0, calibration: str = ""
+) -> Harm:
     """Play `activations` (N, 3) from rest through a rig with `envelope` over a fresh simulated leg.
 
-    The pattern plays until its end or a trip (the envelope's, or the leg's own fault).
+    The sequence plays until its end or a trip (the envelope's, or the leg's own fault).
+
+    Args:
+        activations: one row per tick, shape (N, 3).
+        envelope: the rig's envelope.
+        leg_seed: the simulated leg's seed (its tick jitter).
+        calibration: the simulated rig (MujocoLegConfig.calibration: "" the default, "paper" sim_paper).
     """
-    meter = MeteredLeg(MujocoLegConfig(seed=leg_seed))
+    meter = MeteredLeg(MujocoLegConfig(seed=leg_seed, calibration=calibration))
     rig = PlantRig(meter, config=TickLoopConfig(envelope=envelope))
     rig.reset()
     meter.forget()
@@ -130,3 +141,31 @@ def play_harm(activations: FloatArray, envelope: EnvelopeConfig, leg_seed: int =
     except RigError as err:  # a trip ends the sequence with its reason
         trip = str(err)
     return measure(meter, meter.fault, trip, rig.counters.envelope_ticks)
+
+
+def play_harm_in_env(
+    activations: FloatArray, envelope: EnvelopeConfig, leg_seed: int = 0, calibration: str = ""
+) -> Harm:
+    """Play `activations` (N, 3) as one episode of `g2p/Treadmill-v0`, as the RL baselines run it.
+
+    One action per tick (frame_skip 1), with RIG_AS_IT_RUNS (each action plays a tick late, a reset takes
+    rig time). The episode ends at its 1,600 ticks, at the sequence's end or at a trip. Args as
+    `play_harm`'s; the episode's reset noise is `leg_seed`'s.
+    """
+    from g2p.rl.baselines import RIG_AS_IT_RUNS  # the RL stack (torch), only when asked for
+    from g2p.rl.envs import TreadmillEnv
+
+    meter = MeteredLeg(MujocoLegConfig(seed=leg_seed, calibration=calibration))
+    env = TreadmillEnv(plant=meter, frame_skip=1, envelope=envelope, **RIG_AS_IT_RUNS)
+    env.reset(seed=leg_seed)
+    meter.forget()
+    trip, changed, commanded = "", 0, np.full(activations.shape[1], BASELINE_ACTIVATION)
+    for row in activations[: env.episode_ticks]:
+        *_, terminated, _, info = env.step(row.astype(np.float32))
+        changed += int(np.any(meter.samples[-1].activation != np.maximum(commanded, BASELINE_ACTIVATION)))
+        commanded = np.clip(row.astype(np.float32).astype(np.float64), 0.0, 1.0)  # plays next tick
+        if terminated:
+            trip = info["trip"]
+            break
+    env.close()
+    return measure(meter, meter.fault, trip, changed)

@@ -1,14 +1,20 @@
-"""Periodic open-loop activation patterns: what an adversarial client plays.
+"""Open-loop activation sequences an adversarial client plays: the two spaces the adversary searches.
 
-Each motor follows its own trapezoid wave: `level` for a `duty` share of its `period_s`, baseline the
-rest, shifted by `phase` (a share of the period), each edge slewing at most `rise` per tick. A pattern is
-15 numbers, and maps from the unit cube for a search.
+- `Pattern` (the "periodic" space): each motor follows its own trapezoid wave, `level` for a `duty` share
+  of its `period_s`, baseline the rest, shifted by `phase` (a share of the period), each edge slewing at
+  most `rise` per tick; 15 numbers.
+- `StepSequence` (the "steps" space): free steps, 16 levels per motor each held the same number of ticks,
+  looped; 49 numbers. No shape is assumed: any command sequence of that resolution is one of them.
+
+Both map from the unit cube for a search (`from_unit`, `to_unit`) and play as one row of activations per
+tick (`activations`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -25,6 +31,28 @@ PERIOD_RANGE_S = (0.1, 2.0)
 DUTY_RANGE = (0.1, 0.9)
 RISE_RANGE = (0.02, 1.0)
 N_PARAMETERS = 5 * N_MOTORS
+# A step sequence: 16 steps per motor, each held 1-16 ticks (a loop of 16-256 ticks: 0.2-3.3 s).
+N_STEPS = 16
+HOLD_RANGE_TICKS = (1, 16)
+
+
+class Space(Protocol):
+    """What a searched space of activation sequences offers (`Pattern`, `StepSequence`)."""
+
+    n_parameters: ClassVar[int]
+
+    @classmethod
+    def from_unit(cls, x: FloatArray) -> Space:
+        """The sequence at `x` in the unit cube, shape (n_parameters,)."""
+
+    def to_unit(self) -> FloatArray:
+        """The sequence's point in the unit cube, shape (n_parameters,)."""
+
+    def activations(self, seconds: float, tick_hz: float) -> FloatArray:
+        """The sequence for `seconds` at `tick_hz`, one row per tick, shape (N, 3)."""
+
+    def describe(self) -> dict[str, list[Any]]:
+        """The sequence's numbers, rounded, for a report."""
 
 
 @dataclass(frozen=True)
@@ -38,6 +66,8 @@ class Pattern:
         level: each motor's activation while on ([baseline, 1]); baseline while off.
         rise: the most each motor's activation moves in one tick, up or down ((0, 1]).
     """
+
+    n_parameters: ClassVar[int] = N_PARAMETERS
 
     period_s: FloatArray
     phase: FloatArray
@@ -117,6 +147,67 @@ class Pattern:
             "level": self.level.round(3).tolist(),
             "rise": self.rise.round(3).tolist(),
         }
+
+
+@dataclass(frozen=True)
+class StepSequence:
+    """Free steps, looped (module docstring).
+
+    Attributes:
+        levels: each step's activation per motor, shape (N_STEPS, 3), each in [baseline, 1].
+        hold_ticks: ticks each step is held (1-16).
+    """
+
+    n_parameters: ClassVar[int] = N_STEPS * N_MOTORS + 1
+
+    levels: FloatArray
+    hold_ticks: int
+
+    def __post_init__(self) -> None:
+        levels = np.asarray(self.levels, dtype=np.float64)
+        require(levels.shape == (N_STEPS, N_MOTORS), "levels", f"must have shape (16, 3), got {levels.shape}")
+        require(
+            bool(np.all((levels >= BASELINE_ACTIVATION) & (levels <= 1))),
+            "levels",
+            f"must lie in [{BASELINE_ACTIVATION}, 1]",
+        )
+        lo, hi = HOLD_RANGE_TICKS
+        require(lo <= self.hold_ticks <= hi, "hold_ticks", f"must be in [{lo}, {hi}], got {self.hold_ticks}")
+        object.__setattr__(self, "levels", levels)
+
+    @classmethod
+    def from_unit(cls, x: FloatArray) -> StepSequence:
+        """The sequence at `x` in the unit cube, shape (49,): 48 levels (step-major), then the hold."""
+        x = np.asarray(x, dtype=np.float64)
+        require(x.shape == (cls.n_parameters,), "x", f"must have shape ({cls.n_parameters},), got {x.shape}")
+        require(bool(np.all((x >= 0) & (x <= 1))), "x", "must lie in the unit cube")
+        lo, hi = HOLD_RANGE_TICKS
+        return cls(
+            levels=BASELINE_ACTIVATION + x[:-1].reshape(N_STEPS, N_MOTORS) * (1.0 - BASELINE_ACTIVATION),
+            hold_ticks=round(lo + x[-1] * (hi - lo)),
+        )
+
+    def to_unit(self) -> FloatArray:
+        """The sequence's point in the unit cube, shape (49,): the inverse of `from_unit`."""
+        lo, hi = HOLD_RANGE_TICKS
+        levels = (self.levels - BASELINE_ACTIVATION) / (1.0 - BASELINE_ACTIVATION)
+        result: FloatArray = np.append(levels.ravel(), (self.hold_ticks - lo) / (hi - lo))
+        return result
+
+    def activations(self, seconds: float, tick_hz: float) -> FloatArray:
+        """The loop from its first step for `seconds` at `tick_hz`, one row per tick, shape (N, 3)."""
+        loop = np.repeat(self.levels, self.hold_ticks, axis=0)
+        n = round(seconds * tick_hz)
+        result: FloatArray = np.tile(loop, (-(-n // len(loop)), 1))[:n]
+        return result
+
+    def describe(self) -> dict[str, list[Any]]:
+        """The sequence's numbers, rounded, for a report."""
+        return {"levels": self.levels.round(3).tolist(), "hold_ticks": [float(self.hold_ticks)]}
+
+
+# The searched spaces by name.
+SPACES: dict[str, type[Space]] = {"periodic": Pattern, "steps": StepSequence}
 
 
 def square_wave(

@@ -1,107 +1,135 @@
-"""The adversary's search: the pattern that harms the leg most through an envelope, and its replay.
+"""The adversary's search: the sequence that harms the leg most through an envelope, and its replay.
 
-A black-box search (scipy's differential evolution, no gradients: each candidate is a played pattern)
-over the 15 numbers of a `Pattern`, scoring each by its harm on one leg seed (`Harm.score`). The best
-pattern found is then replayed on other leg seeds (each seed jitters the ticks differently), so that what
-it does is not one run's luck.
+A black-box search over one space of activation sequences (g2p.adversary.patterns.SPACES: "periodic"
+patterns or free "steps"), scoring each candidate by its harm (`Harm.score`) played on one leg seed. It is
+CMA-ES (the `cma` package) in the space's unit cube, restarted with a doubled population whenever it
+converges (IPOP) until its budget of played sequences is spent. The first run starts from the best of the
+known attacks in the periodic space, and from a random point among the steps; each restart from a random
+point. The best sequence found is then replayed on other leg seeds (each seed jitters the ticks
+differently), so that what it does is not one run's luck.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import cma
 import numpy as np
-from scipy.optimize import OptimizeResult, differential_evolution
-from scipy.stats import qmc
 
-from g2p.adversary.harm import Harm, play_harm
-from g2p.adversary.patterns import N_PARAMETERS, Pattern, known_attacks
-from g2p.plant import NOMINAL_TICK_HZ
+from g2p.adversary.harm import Harm, play_harm, play_harm_in_env
+from g2p.adversary.patterns import SPACES, Pattern, Space, known_attacks
+from g2p.plant import NOMINAL_TICK_HZ, FloatArray
 from g2p.rig.envelope import EnvelopeConfig
 
 OBJECTIVES = ("slack", "impact", "tension")
 # What a score's share is of: the leg's derail payout and breaking tension (leg.xml), and an entry speed
 # into a stop that counts as a blow (rad/s).
 LIMITS = {"derail_m": 0.06, "breaking_n": 120.0, "impact_rad_s": 30.0}
+# CMA-ES's first step size in the unit cube: a third of each parameter's range.
+SIGMA0 = 0.3
 
 
 @dataclass(frozen=True)
 class Attack:
-    """The best pattern a search found, with its harm on the leg seed it was scored on.
+    """The best sequence a search found, with its harm on the leg seed it was scored on.
 
     Attributes:
         objective: what was sought (OBJECTIVES).
-        pattern: the pattern.
+        space: the space searched ("periodic" or "steps").
+        sequence: the best sequence.
         harm: its harm on the search's leg seed.
-        evaluations: patterns played by the search.
+        evaluations: sequences played by the search.
+        restarts: CMA-ES runs after the first.
     """
 
     objective: str
-    pattern: Pattern
+    space: str
+    sequence: Space
     harm: Harm
     evaluations: int
+    restarts: int
 
 
 def search(
     envelope: EnvelopeConfig,
     objective: str,
+    space: str = "periodic",
     seed: int = 0,
     seconds: float = 20.0,
-    generations: int = 8,
-    population: int = 5,
+    evaluations: int = 100,
     leg_seed: int = 0,
+    calibration: str = "",
     progress: Callable[[int, float], None] | None = None,
 ) -> Attack:
-    """Search the patterns for the most harm of one kind through `envelope`.
+    """Search one space for the most harm of one kind through `envelope`.
 
     Args:
         envelope: the envelope attacked.
         objective: "slack", "impact" or "tension" (`Harm.score`).
+        space: "periodic" or "steps" (g2p.adversary.patterns.SPACES).
         seed: the search's own seed.
-        seconds: how long each pattern plays (s).
-        generations: differential evolution's generations after the first.
-        population: candidates per parameter in each generation (scipy's `popsize`).
+        seconds: how long each sequence plays (s).
+        evaluations: sequences to play in all (the budget; a generation begun is played whole).
         leg_seed: the simulated leg's seed the candidates are scored on.
-        progress: called after each generation with the evaluations so far and the best score.
+        calibration: the simulated rig ("" the default, "paper" sim_paper).
+        progress: called after each CMA-ES generation with the evaluations so far and the best score.
     """
     if objective not in OBJECTIVES:
         raise ValueError(f"objective: must be one of {OBJECTIVES}, got {objective!r}")
+    if space not in SPACES:
+        raise ValueError(f"space: must be one of {tuple(SPACES)}, got {space!r}")
+    kind = SPACES[space]
+    rng = np.random.default_rng(seed)
     played = 0
 
-    def negative_harm(x: np.ndarray) -> float:
+    def score(x: FloatArray) -> float:
         nonlocal played
         played += 1
-        pattern = Pattern.from_unit(np.clip(x, 0.0, 1.0))
-        harm = play_harm(pattern.activations(seconds, NOMINAL_TICK_HZ), envelope, leg_seed)
-        return -harm.score(objective, LIMITS)
+        activations = kind.from_unit(x).activations(seconds, NOMINAL_TICK_HZ)
+        return play_harm(activations, envelope, leg_seed, calibration).score(objective, LIMITS)
 
-    def after_generation(intermediate_result: OptimizeResult) -> None:
-        if progress is not None:
-            progress(played, -float(intermediate_result.fun))
+    best_x, best = rng.random(kind.n_parameters), -np.inf
+    if kind is Pattern:  # start from the best known attack
+        for x in (p.to_unit() for p in known_attacks().values()):
+            if (f := score(x)) > best:
+                best_x, best = x, f
+    x0, population, restarts = best_x, 4 + int(3 * np.log(kind.n_parameters)), -1
+    while played < evaluations:
+        restarts += 1
+        options = {
+            "bounds": [0.0, 1.0],
+            "popsize": population,
+            "seed": int(rng.integers(1, 2**31)),  # cma seeds numpy's global generator with it
+            "maxfevals": evaluations - played,
+            "verbose": -9,
+        }
+        es = cma.CMAEvolutionStrategy(x0, SIGMA0, options)
+        while not es.stop() and played < evaluations:
+            xs = [np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0) for x in es.ask()]
+            fs = [score(x) for x in xs]
+            es.tell(xs, [-f for f in fs])
+            if max(fs) > best:
+                best, best_x = max(fs), xs[int(np.argmax(fs))]
+            if progress is not None:
+                progress(played, best)
+        x0, population = rng.random(kind.n_parameters), 2 * population
+    sequence = kind.from_unit(best_x)
+    harm = play_harm(sequence.activations(seconds, NOMINAL_TICK_HZ), envelope, leg_seed, calibration)
+    return Attack(objective, space, sequence, harm, played, restarts)
 
-    # The first population: Sobol points, with the known attacks among them (the search starts from them).
-    size = population * N_PARAMETERS
-    first = qmc.Sobol(N_PARAMETERS, seed=seed).random(2 ** math.ceil(math.log2(size)))
-    known = np.array([p.to_unit() for p in known_attacks().values()])
-    first[: len(known)] = known
-    result = differential_evolution(
-        negative_harm,
-        bounds=[(0.0, 1.0)] * N_PARAMETERS,
-        maxiter=generations,
-        popsize=population,
-        init=first,
-        polish=False,
-        seed=seed,
-        tol=0.0,
-        callback=after_generation,
-    )
-    pattern = Pattern.from_unit(np.clip(result.x, 0.0, 1.0))
-    harm = play_harm(pattern.activations(seconds, NOMINAL_TICK_HZ), envelope, leg_seed)
-    return Attack(objective, pattern, harm, played)
 
+def replay(
+    activations: FloatArray,
+    envelope: EnvelopeConfig,
+    leg_seeds: range,
+    calibration: str = "",
+    through_env: bool = False,
+) -> list[Harm]:
+    """The harm of one activation sequence (N, 3) through `envelope` on each leg seed.
 
-def replay(pattern_activations: np.ndarray, envelope: EnvelopeConfig, leg_seeds: range) -> list[Harm]:
-    """The harm of one activation sequence (N, 3) through `envelope` on each leg seed."""
-    return [play_harm(pattern_activations, envelope, s) for s in leg_seeds]
+    Played through `PlantRig`, or (`through_env`) as an episode of `g2p/Treadmill-v0`.
+    """
+    if through_env:
+        return [play_harm_in_env(activations, envelope, s, calibration) for s in leg_seeds]
+    return [play_harm(activations, envelope, s, calibration) for s in leg_seeds]

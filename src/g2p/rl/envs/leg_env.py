@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 
 from g2p.learning.limit_cycle import LimitCycleConfig
 from g2p.plant import N_JOINTS, N_MOTORS, FloatArray, Plant, TickSample
-from g2p.rig.envelope import SafetyEnvelope
+from g2p.rig.envelope import EnvelopeConfig, SafetyEnvelope
 from g2p.safety import BASELINE_ACTIVATION
 from g2p.sim import MujocoLeg, MujocoLegConfig
 
@@ -68,6 +68,7 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
             rig holds baseline this long before the episode starts, and the windings keep their heat
             (the safety envelope its estimate) across episodes. 0: each episode starts on a fresh rig,
             windings at ambient, and no rig time passes.
+        envelope: the in-process rig's safety envelope (simulated rig only; a ROS rig applies its own).
         render_mode: None or "rgb_array" (MuJoCo's offscreen renderer: set MUJOCO_GL=egl on a machine
             without a display).
         width: rendered image width (pixels).
@@ -90,6 +91,7 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         reset_noise_scale: float = 5e-3,
         action_delay_ticks: int = 0,
         reset_s: float = 0.0,
+        envelope: EnvelopeConfig | None = None,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -133,6 +135,7 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
         self.ticks = 0
         """Ticks played in the current episode."""
         self._last: TickSample | None = None
+        self.envelope_config = envelope if envelope is not None else EnvelopeConfig()
         self._envelope: SafetyEnvelope | None = None  # the in-process rig's; a ROS rig applies its own
         self._trip = ""
         self._delayed: deque[FloatArray] = deque()  # commands on their way: the oldest plays next
@@ -166,7 +169,8 @@ class LegEnv(gym.Env[NDArray[np.float64], NDArray[np.float32]]):
             if warm:
                 self._rest()
             else:
-                self._envelope = SafetyEnvelope()  # the windings start at ambient, as reset_episode's
+                # The windings start at ambient, as reset_episode's.
+                self._envelope = SafetyEnvelope(self.envelope_config)
             self._last = self.plant.reset_episode(self.np_random, self.reset_noise_scale, keep_heat=warm)
             assert self._envelope is not None
             self._envelope.observe(self._last, at_rest=True)
