@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from g2p.learning.babbling import BabblingConfig
 from g2p.learning.experiments import TreadmillRun
@@ -26,6 +28,7 @@ from g2p.rig.envelope import (
 from g2p.rig.tick_loop import CommandOutcome, Job, Pacing, TickLoop, TickLoopConfig
 from g2p.safety import BASELINE_ACTIVATION
 from g2p.sim import AIR_CARRIAGE_HEIGHT_M, MujocoLeg, MujocoLegConfig
+from g2p.validation import ConfigError
 
 ONES = np.ones(3)
 
@@ -58,6 +61,49 @@ def test_the_thermal_estimate_is_the_first_order_solution_of_the_regulated_curre
     np.testing.assert_allclose(
         first_order_temperature(np.array([80.0]), np.zeros(1), 1e9, 2.5, 60.0, 25.0), [25.0]
     )
+
+
+def calibration_file(tmp_path: Path, parameters: dict[str, object]) -> str:
+    """A calibration file (g2p-calibrate's format) with `parameters`; its path."""
+    path = tmp_path / "calib.yaml"
+    doc = {"format": "g2p-leg-calibration", "version": 1, "model": "g2p_leg", "parameters": parameters}
+    path.write_text(yaml.safe_dump(doc))
+    return str(path)
+
+
+def test_the_envelope_takes_its_motor_constants_from_the_rigs_calibration(tmp_path: Path) -> None:
+    # The thermal estimate's rise is I^2 R: with the winding's calibrated 1.2 ohm, twice the rated 0.6's.
+    path = calibration_file(
+        tmp_path, {"motor_resistance_ohm": 1.2, "motor_kt_nm_per_a": 0.05, "belt_drag_n": 4.0}
+    )
+    rated, calibrated = SafetyEnvelope(), SafetyEnvelope(EnvelopeConfig(calibration=path))
+    assert calibrated.config.winding.resistance_ohm == calibrated.config.drive.resistance_ohm == 1.2
+    assert calibrated.config.drive.kt_nm_per_a == 0.05 and calibrated.tendons.rating.kt_nm_per_a == 0.05
+    assert calibrated.config.calibration == ""  # applied
+    assert replace(calibrated.config, drive=rated.config.drive, winding=rated.config.winding) == rated.config
+    for envelope in (rated, calibrated):
+        envelope.observe(measured(0.0, np.zeros(3)))
+        envelope.observe(measured(10.0, ONES))
+    ambient = WindingRating().ambient_c
+    np.testing.assert_allclose(calibrated.winding_c - ambient, 2.0 * (rated.winding_c - ambient), rtol=1e-12)
+    # The packaged paper-like rig calibrates the belt and the foot only: the rated constants stay.
+    assert SafetyEnvelope(EnvelopeConfig(calibration="paper")).config == rated.config
+
+
+@pytest.mark.parametrize(
+    ("parameters", "message"),
+    [
+        ({"motor_kt_nm_per_a": "fast"}, "motor_kt_nm_per_a must be a number"),
+        ({"motor_resistance_ohm": -1.0}, "resistance_ohm: must be finite and > 0"),
+    ],
+)
+def test_a_bad_calibration_is_refused_naming_it(
+    tmp_path: Path, parameters: dict[str, object], message: str
+) -> None:
+    with pytest.raises(ConfigError, match=rf"calibration: .*{message}"):
+        EnvelopeConfig(calibration=calibration_file(tmp_path, parameters))
+    with pytest.raises(ConfigError, match=r"calibration: no calibration file 'nope\.yaml'"):
+        EnvelopeConfig(calibration="nope.yaml")
 
 
 def test_a_hot_motor_is_derated_toward_baseline_and_trips_only_at_its_cut_out() -> None:

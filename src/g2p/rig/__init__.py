@@ -8,7 +8,7 @@
 - `closed_loop`: the trajectory tracker, the inverse map evaluated on the rig every tick.
 - `tendon_check`: does each tendon, pulled alone, turn the joints the documented way?
 
-May import: g2p.inverse_map.
+May import: g2p.description, g2p.inverse_map.
 """
 
 from g2p.rig.rigs import (

@@ -33,15 +33,16 @@ last activation) lives across ticks and resets, as the windings' heat does.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
+from g2p.description.calibration_file import CalibrationError, read_parameters
 from g2p.plant import Recording, TickSample, first_order_temperature
 from g2p.rig.tendons import TENDON_ARMS_M, DriveRating, TendonEstimate
 from g2p.safety import BASELINE_ACTIVATION, N_MOTORS
-from g2p.validation import require
+from g2p.validation import ConfigError, require
 
 FloatArray = NDArray[np.float64]
 
@@ -74,6 +75,18 @@ class WindingRating:
     ambient_c: float = 25.0
 
 
+# The calibration's parameters (g2p.sim.calibration.PARAMETERS) the envelope takes, and where it puts each:
+# (DriveRating or WindingRating, its field).
+CALIBRATED_CONSTANTS: dict[str, tuple[tuple[str, str], ...]] = {
+    "motor_kt_nm_per_a": (("drive", "kt_nm_per_a"),),
+    "motor_resistance_ohm": (("drive", "resistance_ohm"), ("winding", "resistance_ohm")),
+    "tendon_stiffness_n_per_m": (("drive", "tendon_stiffness_n_per_m"),),
+    "motor_max_current_a": (("winding", "max_current_a"),),
+    "winding_thermal_resistance_k_per_w": (("winding", "thermal_resistance_k_per_w"),),
+    "winding_time_constant_s": (("winding", "time_constant_s"),),
+}
+
+
 @dataclass(frozen=True)
 class EnvelopeConfig:
     """The safety envelope's rules (module docstring).
@@ -98,6 +111,10 @@ class EnvelopeConfig:
         slack_trip_m: the cable estimated in a slack tendon's loop (g2p.rig.tendons) that trips the rig
             (m): a tendon leaves its channel at 60 mm, and a loop can grow by about 10 mm in a tick; the
             estimate errs 5-15 mm high, never low.
+        calibration: the rig's calibration file (as `g2p-calibrate` writes it) or a packaged calibration's
+            name, whose motor, tendon and winding constants (CALIBRATED_CONSTANTS) replace the rated ones
+            of `drive` and `winding`; "" keeps the rated ones. The supply voltage is not among them: no
+            rule uses it.
         derate_start_c: estimated winding temperature from which a motor is derated (deg C).
         derate_full_c: estimated winding temperature at which a motor is held at baseline (deg C).
         trip_c: estimated winding temperature that trips the rig (deg C): the drivers' cut-out, which
@@ -117,6 +134,7 @@ class EnvelopeConfig:
     winding: WindingRating = field(default_factory=WindingRating)
     drive: DriveRating = field(default_factory=DriveRating)
     slack_trip_m: float = 0.050
+    calibration: str = ""
     derate_start_c: float = 72.0
     derate_full_c: float = 78.0
     trip_c: float = 80.0
@@ -144,6 +162,27 @@ class EnvelopeConfig:
             f"need ambient < derate_start_c < derate_full_c <= trip_c, got {self.winding.ambient_c}, "
             f"{self.derate_start_c}, {self.derate_full_c}, {self.trip_c}",
         )
+        if self.calibration:
+            try:
+                self.calibrated()
+            except (CalibrationError, ConfigError) as err:
+                raise ConfigError(f"calibration: {err}") from err
+
+    def calibrated(self) -> EnvelopeConfig:
+        """These rules with the calibration's constants in `drive` and `winding` (itself without one).
+
+        Raises:
+            g2p.description.calibration_file.CalibrationError: the file cannot be read.
+            g2p.validation.ConfigError: a calibrated constant is invalid.
+        """
+        if not self.calibration:
+            return self
+        values = read_parameters(self.calibration)
+        drive, winding = asdict(self.drive), asdict(self.winding)
+        for name, targets in CALIBRATED_CONSTANTS.items():
+            for part, field_name in targets if name in values else ():
+                (drive if part == "drive" else winding)[field_name] = values[name]
+        return replace(self, drive=DriveRating(**drive), winding=WindingRating(**winding), calibration="")
 
 
 @dataclass(frozen=True)
@@ -184,7 +223,9 @@ class SafetyEnvelope:
     def __init__(
         self, config: EnvelopeConfig = EnvelopeConfig(), baseline_activation: float = BASELINE_ACTIVATION
     ) -> None:
+        config = config.calibrated()
         self.config = config
+        """Its rules, with the calibration's constants (`EnvelopeConfig.calibrated`)."""
         self.baseline_activation = baseline_activation
         self.winding_c = np.full(N_MOTORS, config.winding.ambient_c)
         """Each winding's estimated temperature (deg C), shape (3,)."""

@@ -1,6 +1,7 @@
 """A calibration of the simulated rig: named physical parameters of the leg, written into its MuJoCo model.
 
-A calibration file is a small versioned YAML document (docs/SIMULATOR.md, "Calibration"):
+A calibration file is a small versioned YAML document (docs/SIMULATOR.md, "Calibration"; its format is
+read in g2p.description.calibration_file, which needs no MuJoCo):
 
     format: g2p-leg-calibration
     version: 1
@@ -23,25 +24,26 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from importlib import resources
-from pathlib import Path
 from typing import Any
 
 import mujoco
 import numpy as np
 import yaml
 
+from g2p.description.calibration_file import (
+    FORMAT,
+    MODEL_NAME,
+    VERSION,
+    CalibrationError,
+    check_document,
+    packaged_calibrations,
+    read_document,
+    resolve_calibration_path,
+)
 from g2p.plant import MOTOR_NAMES, FloatArray
 
-FORMAT = "g2p-leg-calibration"
-VERSION = 1
-MODEL_NAME = "g2p_leg"
 # The encoder delay the plant can apply (s): its history of sub-step angles covers this much.
 MAX_ENCODER_DELAY_S = 0.05
-
-
-class CalibrationError(ValueError):
-    """A calibration file cannot be read or holds invalid values; the message names the file or field."""
 
 
 @dataclass(frozen=True)
@@ -356,32 +358,6 @@ def _parameters() -> tuple[LegParameter, ...]:
 PARAMETERS: dict[str, LegParameter] = {p.name: p for p in _parameters()}
 
 
-def _packaged_dir() -> Path:
-    return Path(str(resources.files("g2p.description").joinpath("models", "calibrations")))
-
-
-def packaged_calibrations() -> list[str]:
-    """Names of the calibrations shipped in g2p/description/models/calibrations/."""
-    return sorted(p.stem for p in _packaged_dir().glob("*.yaml"))
-
-
-def resolve_calibration_path(name_or_path: str) -> Path:
-    """The file a `calibration` setting names: a path, or the name of a packaged calibration.
-
-    Raises:
-        CalibrationError: neither a file nor a packaged calibration.
-    """
-    path = Path(name_or_path)
-    if path.is_file():
-        return path
-    packaged = _packaged_dir() / f"{name_or_path}.yaml"
-    if "/" not in name_or_path and packaged.is_file():
-        return packaged
-    raise CalibrationError(
-        f"no calibration file {name_or_path!r} (nor a packaged one: {', '.join(packaged_calibrations())})"
-    )
-
-
 @dataclass(frozen=True)
 class LegCalibration:
     """Values for some of PARAMETERS, and what the fit that produced them said.
@@ -466,18 +442,7 @@ class LegCalibration:
         Raises:
             CalibrationError: wrong format, version or model, unknown parameter or value out of range.
         """
-        where = source or "calibration"
-        if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-            raise CalibrationError(f"{where}: not a leg calibration (needs 'format: {FORMAT}')")
-        if doc.get("version") != VERSION:
-            raise CalibrationError(
-                f"{where}: version {doc.get('version')!r} is not supported (this reads {VERSION})"
-            )
-        if doc.get("model") != MODEL_NAME:
-            raise CalibrationError(f"{where}: calibrates model {doc.get('model')!r}, not {MODEL_NAME!r}")
-        parameters = doc.get("parameters") or {}
-        if not isinstance(parameters, dict):
-            raise CalibrationError(f"{where}: 'parameters' must be a mapping of name to value")
+        parameters = check_document(doc, source or "calibration")
         return cls(
             parameters=dict(parameters),
             intervals={k: float(v) for k, v in (doc.get("intervals") or {}).items()},
@@ -493,12 +458,8 @@ class LegCalibration:
         Raises:
             CalibrationError: the file is missing, is not YAML, or holds an invalid calibration.
         """
-        path = resolve_calibration_path(name_or_path)
-        try:
-            doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
-            raise CalibrationError(f"{path}: cannot read the calibration: {err}") from err
-        return cls.from_dict(doc, source=str(path))
+        doc, source = read_document(name_or_path)
+        return cls.from_dict(doc, source=source)
 
 
 def model_values(model: mujoco.MjModel) -> dict[str, float]:

@@ -292,6 +292,36 @@ def test_tendon_check_passes_on_the_fake_rig(tmp_path: Path, state_dir: Path) ->
     assert is_off(outputs(state_dir))
 
 
+def test_the_drivers_envelope_takes_the_rigs_calibrated_winding(
+    tmp_path: Path, state_dir: Path, peer: LifecyclePeer
+) -> None:
+    # A winding calibrated at 2.4 ohm heats the estimate 4 times as fast as the rated 0.6 ohm: from rest at
+    # activation 1 (8 A) it passes 26 degC near tick 30 (the rated one near tick 65), so tick 40 is derated.
+    calibration = tmp_path / "calib.yaml"
+    calibration.write_text(
+        "format: g2p-leg-calibration\nversion: 1\nmodel: g2p_leg\nparameters: {motor_resistance_ohm: 2.4}\n"
+    )
+    driver = start_driver(
+        tmp_path,
+        state_dir,
+        f"rig.envelope.calibration:={calibration}",
+        "rig.envelope.derate_start_c:=26.0",
+        "rig.envelope.derate_full_c:=30.0",
+    )
+    try:
+        peer.wait_for_driver()
+        assert peer.transition(Transition.TRANSITION_CONFIGURE), driver.log()
+        assert peer.transition(Transition.TRANSITION_ACTIVATE), driver.log()
+        response = peer.wait(peer.play(np.ones((60, 3))).get_result_async(), 30.0)
+        assert response.status == GoalStatus.STATUS_SUCCEEDED, response.result.message
+        rec = recording_from_msg(response.result.samples)
+        assert np.all(rec.activation[12:16] == 1.0)  # cold: untouched, once the ramp climbed from rest
+        assert np.all(rec.activation[40] < 1.0)
+        assert peer.transition(Transition.TRANSITION_DEACTIVATE), driver.log()
+    finally:
+        assert driver.stop() == 0, driver.log_path.read_text()
+
+
 @pytest.mark.parametrize(("fake_devices", "heavy"), [(False, set()), (True, {"mujoco"})])
 def test_the_driver_imports_mujoco_only_for_fake_devices_and_never_torch(
     fake_devices: bool, heavy: set[str]
