@@ -197,6 +197,8 @@ class TickPublisher:
                 ramp_cap=action.ramp_cap,
                 thermal_scale=action.thermal_scale,
                 winding_estimate_c=action.winding_c,
+                tension_estimate_n=action.tension_n,
+                slack_loop_estimate_m=action.slack_loop_m,
                 trip=trip,
             )
         )

@@ -121,6 +121,8 @@ def rig_limits_message(messages: Messages, k: int, stamp: int) -> Any:
         ramp_cap=np.where([False, False, changed], applied, 1.0),
         thermal_scale=np.ones(3),
         winding_estimate_c=np.full(3, 25.0),
+        tension_estimate_n=np.full(3, 5.0),
+        slack_loop_estimate_m=np.zeros(3),
         trip="",
     )
 

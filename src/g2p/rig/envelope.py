@@ -197,6 +197,8 @@ class EnvelopeAction:
             allowed this tick, at most 1, shape (3,).
         thermal_scale: each motor's scale from its thermal budget, shape (3,) (1 = untouched).
         winding_c: each winding's estimated temperature when the tick began, shape (3,) (deg C).
+        tension_n: each tendon's estimated tension when the tick began (g2p.rig.tendons), shape (3,) (N).
+        slack_loop_m: the cable estimated in each slack tendon's loop when the tick began, shape (3,) (m).
     """
 
     commanded: FloatArray
@@ -205,6 +207,8 @@ class EnvelopeAction:
     ramp_cap: FloatArray
     thermal_scale: FloatArray
     winding_c: FloatArray
+    tension_n: FloatArray
+    slack_loop_m: FloatArray
 
     @property
     def acted(self) -> bool:
@@ -282,6 +286,8 @@ class SafetyEnvelope:
             ramp_cap=ramp_cap,
             thermal_scale=thermal_scale,
             winding_c=self.winding_c.copy(),
+            tension_n=self.tendons.tension_n.copy(),
+            slack_loop_m=self.tendons.loop_m.copy(),
         )
 
     @property

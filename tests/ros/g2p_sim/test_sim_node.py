@@ -281,6 +281,8 @@ def test_the_rig_publishes_what_its_limits_did_each_tick_and_derates_a_hot_motor
         last = limits[-1]
         assert list(last.commanded) == [1.0, 1.0, 1.0] and max(last.thermal_scale) < 1.0
         assert min(last.winding_estimate_c) > 26.0 and last.trip == ""
+        # Co-contracted, every tendon is taut: its current holds a tension (at least baseline's 9 N), no loop.
+        assert min(last.tension_estimate_n) > 9.0 and max(last.slack_loop_estimate_m) == 0.0
         np.testing.assert_allclose(
             rec.activation[-1], BASELINE + (1.0 - BASELINE) * np.array(last.thermal_scale), atol=1e-12
         )
