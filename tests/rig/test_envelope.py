@@ -330,3 +330,32 @@ def test_a_spool_paying_into_its_slack_tendon_trips_the_rig_before_it_derails() 
     # A reset's sample starts the estimate again: the trip clears with it.
     envelope.observe(measured(1.0, np.full(3, BASELINE_ACTIVATION)), at_rest=True)
     assert envelope.trip == ""
+
+
+def test_a_motor_reeling_in_a_slack_loop_is_held_at_baseline_until_its_tendon_is_taut() -> None:
+    # M1's spool pays out 6.4 mm a tick for 2 ticks (a 12.8 mm loop, past the 3 mm guard), then reels in at
+    # 50 rad/s: while the loop lasts M1 is held at baseline, M0 and M2 are not; once it is taken up, M1's
+    # command passes again (through the ramp, from baseline).
+    cfg = EnvelopeConfig(soft_limits=False)
+    envelope = SafetyEnvelope(cfg)
+    command = np.array([0.3, 0.9, 0.3])
+    current = np.full(3, BASELINE_ACTIVATION * WindingRating().max_current_a)
+
+    def tick(k: int, speed: float) -> np.ndarray:
+        applied = envelope.limit(command, np.zeros(2), np.zeros(2)).applied
+        spools = np.array([0.0, speed, 0.0])
+        power = current**2 * WindingRating().resistance_ohm + cfg.drive.kt_nm_per_a * current * spools
+        envelope.observe(replace(measured(0.0128 * k, applied), current_a=current, power_w=power))
+        return applied
+
+    envelope.observe(replace(measured(0.0, np.full(3, BASELINE_ACTIVATION)), current_a=current))
+    assert tick(1, -50.0)[1] > BASELINE_ACTIVATION  # taut so far: the ramp's first 0.2
+    tick(2, -50.0)
+    assert envelope.tendons.loop_m[1] == pytest.approx(0.0128)
+    held = tick(3, 50.0)
+    assert held[1] == BASELINE_ACTIVATION and held[0] > BASELINE_ACTIVATION and held[2] > BASELINE_ACTIVATION
+    k = 3
+    while envelope.tendons.loop_m[1] > cfg.slack_guard_m:
+        k += 1
+        assert tick(k, 50.0)[1] == BASELINE_ACTIVATION
+    assert tick(k + 1, 0.0)[1] == BASELINE_ACTIVATION + cfg.max_step

@@ -143,9 +143,10 @@ def test_a_command_the_rules_leave_alone_passes_bit_for_bit(
     tick_s: np.ndarray,
     spool_speed: np.ndarray,
 ) -> None:
-    # Rises within the ramp's sustained slope, with the soft limits off and the windings cool: the rules
-    # have nothing to do, so the applied activation is the command itself, not a rounding of it.
-    config = EnvelopeConfig(soft_limits=False)
+    # Rises within the ramp's sustained slope, with the soft limits off, the slack rules out of reach (the
+    # drawn spool speeds pay out loops) and the windings cool: the rules have nothing to do, so the
+    # applied activation is the command itself, not a rounding of it.
+    config = EnvelopeConfig(soft_limits=False, slack_guard_m=10.0, slack_trip_m=10.0)
     envelope = SafetyEnvelope(config)
     steps = np.arange(1, TICKS + 1) % 14  # rising for 13 ticks, then a fall to baseline
     command = BASELINE_ACTIVATION + config.ramp_per_tick * np.outer(steps, [1.0, 0.5, 0.25])

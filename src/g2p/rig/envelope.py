@@ -18,6 +18,10 @@ same rules:
   sequence of smaller steps. Every tendon stepped at once (a square wave: one let go as two pull) throws
   the shank into its stop faster than a rule acting on measured speeds can brake it, one tick late and
   behind the motors' lag; the ramp spreads the step.
+- **Slack loops**, estimated from the motors' current and power and the joints' velocities
+  (g2p.rig.tendons): a motor whose tendon's loop is estimated beyond `slack_guard_m` is held at baseline
+  until the tendon is taut again, so that its spool takes the slack up gently rather than snapping the
+  tendon taut; a loop beyond `slack_trip_m` trips the rig, naming the tendon.
 - **A thermal budget per motor** (I^2 t, as motor drivers protect windings): each winding's temperature is
   estimated with the rated first-order thermal model from the current its current-mode driver regulates,
   the applied activation times the current at activation 1. The supply voltage only lowers the true
@@ -111,6 +115,10 @@ class EnvelopeConfig:
         slack_trip_m: the cable estimated in a slack tendon's loop (g2p.rig.tendons) that trips the rig
             (m): a tendon leaves its channel at 60 mm, and a loop can grow by about 10 mm in a tick; the
             estimate errs 5-15 mm high, never low.
+        slack_guard_m: the cable estimated in a slack tendon's loop from which its motor is held at baseline
+            until the tendon is taut again (m): a spool reeling in slack at a high activation snaps the
+            tendon taut (a snatch load); at baseline it takes the slack up gently. At most `slack_trip_m`
+            (equal: no guard before the trip).
         calibration: the rig's calibration file (as `g2p-calibrate` writes it) or a packaged calibration's
             name, whose motor, tendon and winding constants (CALIBRATED_CONSTANTS) replace the rated ones
             of `drive` and `winding`; "" keeps the rated ones. The supply voltage is not among them: no
@@ -134,6 +142,7 @@ class EnvelopeConfig:
     winding: WindingRating = field(default_factory=WindingRating)
     drive: DriveRating = field(default_factory=DriveRating)
     slack_trip_m: float = 0.050
+    slack_guard_m: float = 0.003
     calibration: str = ""
     derate_start_c: float = 72.0
     derate_full_c: float = 78.0
@@ -153,6 +162,11 @@ class EnvelopeConfig:
             value = getattr(self, name)
             require(math.isfinite(value) and value >= 0, name, f"must be finite and >= 0, got {value}")
         require(self.slack_trip_m > 0, "slack_trip_m", f"must be > 0, got {self.slack_trip_m}")
+        require(
+            0 < self.slack_guard_m <= self.slack_trip_m,
+            "slack_guard_m",
+            f"must be in (0, slack_trip_m = {self.slack_trip_m}], got {self.slack_guard_m}",
+        )
         for name in ("max_step", "ramp_per_tick"):
             value = getattr(self, name)
             require(0 < value <= 1, name, f"must be in (0, 1], got {value}")
@@ -279,6 +293,8 @@ class SafetyEnvelope:
         applied = np.where(scale < 1.0, base + (activation - base) * scale, activation)
         ramp_cap = np.minimum(self._last_activation + self._credit, 1.0)
         applied = np.minimum(applied, ramp_cap)
+        # A spool reeling in a slack loop is held at baseline (the snatch guard).
+        applied = np.where(self.tendons.loop_m > cfg.slack_guard_m, base, applied)
         return EnvelopeAction(
             commanded=activation.copy(),
             applied=applied,
