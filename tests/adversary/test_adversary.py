@@ -24,7 +24,8 @@ from g2p.rig.envelope import EnvelopeConfig
 from g2p.safety import BASELINE_ACTIVATION
 from g2p.validation import ConfigError
 
-THERMAL_ONLY = EnvelopeConfig(soft_limits=False, max_step=1.0)
+# The joint rules, the ramp and the snatch guard off (the guard as far out as the slack trip).
+THERMAL_ONLY = EnvelopeConfig(soft_limits=False, max_step=1.0, slack_guard_m=EnvelopeConfig().slack_trip_m)
 
 
 def test_the_unit_cube_spans_the_patterns_ranges() -> None:
