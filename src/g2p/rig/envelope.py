@@ -193,8 +193,8 @@ class EnvelopeConfig:
             return self
         values = read_parameters(self.calibration)
         drive, winding = asdict(self.drive), asdict(self.winding)
-        for name, targets in CALIBRATED_CONSTANTS.items():
-            for part, field_name in targets if name in values else ():
+        for name in CALIBRATED_CONSTANTS.keys() & values.keys():
+            for part, field_name in CALIBRATED_CONSTANTS[name]:
                 (drive if part == "drive" else winding)[field_name] = values[name]
         return replace(self, drive=DriveRating(**drive), winding=WindingRating(**winding), calibration="")
 
