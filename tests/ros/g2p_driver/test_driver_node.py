@@ -295,11 +295,12 @@ def test_tendon_check_passes_on_the_fake_rig(tmp_path: Path, state_dir: Path) ->
 def test_the_drivers_envelope_takes_the_rigs_calibrated_winding(
     tmp_path: Path, state_dir: Path, peer: LifecyclePeer
 ) -> None:
-    # A winding calibrated at 2.4 ohm heats the estimate 4 times as fast as the rated 0.6 ohm: from rest at
-    # activation 1 (8 A) it passes 26 degC near tick 30 (the rated one near tick 65), so tick 40 is derated.
+    # A winding calibrated at 6 ohm heats the estimate 10 times as fast as the rated 0.6 ohm: from rest at
+    # activation 1 (8 A) it passes 26 degC within about 15 ticks, the rated one after about 60. Ticks that
+    # run late only heat the estimate sooner, so tick 25 is derated however the machine keeps time.
     calibration = tmp_path / "calib.yaml"
     calibration.write_text(
-        "format: g2p-leg-calibration\nversion: 1\nmodel: g2p_leg\nparameters: {motor_resistance_ohm: 2.4}\n"
+        "format: g2p-leg-calibration\nversion: 1\nmodel: g2p_leg\nparameters: {motor_resistance_ohm: 6.0}\n"
     )
     driver = start_driver(
         tmp_path,
@@ -315,8 +316,7 @@ def test_the_drivers_envelope_takes_the_rigs_calibrated_winding(
         response = peer.wait(peer.play(np.ones((60, 3))).get_result_async(), 30.0)
         assert response.status == GoalStatus.STATUS_SUCCEEDED, response.result.message
         rec = recording_from_msg(response.result.samples)
-        assert np.all(rec.activation[12:16] == 1.0)  # cold: untouched, once the ramp climbed from rest
-        assert np.all(rec.activation[40] < 1.0)
+        assert np.all(rec.activation[25] < 1.0)
         assert peer.transition(Transition.TRANSITION_DEACTIVATE), driver.log()
     finally:
         assert driver.stop() == 0, driver.log_path.read_text()

@@ -205,14 +205,15 @@ def test_realtime_a_command_takes_effect_a_tick_later_and_the_watchdog_drops_a_s
     start: a command arrives during the tick returned for it (the first stamped after it) and plays the
     next one, so each step's tick shows the previous step's command."""
     # The applied activations tell which command played: the soft limits, which change them near the
-    # stops, and the ramp, which spreads their steps, are off here (the envelope's thermal budget stays
-    # far from derating).
+    # stops, the ramp, which spreads their steps, and the snatch guard, which holds a motor reeling in
+    # slack at baseline, are off here (the envelope's thermal budget stays far from derating).
     sim = start_sim(
         tmp_path,
         "time_mode:=realtime",
         f"leg.seed:={SEED}",
         "rig.envelope.soft_limits:=false",
         "rig.envelope.max_step:=1.0",
+        "rig.envelope.slack_guard_m:=0.05",
     )
     peer = TickPeer(sim_time=False)  # system time, as on the hardware
     commands = np.random.default_rng(1).uniform(0.2, 0.9, (100, 3))
