@@ -97,7 +97,7 @@ def read_parameters(name_or_path: str) -> dict[str, float]:
     """
     doc, source = read_document(name_or_path)
     out = {}
-    for name, value in check_document(doc, source).items():
+    for name, value in (doc.get("parameters") or {}).items():  # a mapping: read_document checked it
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise CalibrationError(f"{source}: {name} must be a number, got {value!r}")
         out[str(name)] = float(value)

@@ -26,6 +26,7 @@ from lifecycle_msgs.srv import ChangeState, GetState
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
+from g2p.plant import Recording
 from g2p_interfaces.action import RunActivations
 from g2p_interfaces.msg import MotorActivation
 from g2p_ros import contract
@@ -292,6 +293,29 @@ def test_tendon_check_passes_on_the_fake_rig(tmp_path: Path, state_dir: Path) ->
     assert is_off(outputs(state_dir))
 
 
+def play_at_full_activation(
+    tmp_path: Path, state_dir: Path, peer: LifecyclePeer, ticks: int, *parameters: str
+) -> Recording:
+    """Every motor at activation 1 for `ticks` on a driver derating from 26 degC, and what it applied."""
+    driver = start_driver(
+        tmp_path,
+        state_dir,
+        "rig.envelope.derate_start_c:=26.0",
+        "rig.envelope.derate_full_c:=30.0",
+        *parameters,
+    )
+    try:
+        peer.wait_for_driver()
+        assert peer.transition(Transition.TRANSITION_CONFIGURE), driver.log()
+        assert peer.transition(Transition.TRANSITION_ACTIVATE), driver.log()
+        response = peer.wait(peer.play(np.ones((ticks, 3))).get_result_async(), 30.0)
+        assert response.status == GoalStatus.STATUS_SUCCEEDED, response.result.message
+        assert peer.transition(Transition.TRANSITION_DEACTIVATE), driver.log()
+    finally:
+        assert driver.stop() == 0, driver.log_path.read_text()
+    return recording_from_msg(response.result.samples)
+
+
 def test_the_drivers_envelope_takes_the_rigs_calibrated_winding(
     tmp_path: Path, state_dir: Path, peer: LifecyclePeer
 ) -> None:
@@ -302,24 +326,8 @@ def test_the_drivers_envelope_takes_the_rigs_calibrated_winding(
     calibration.write_text(
         "format: g2p-leg-calibration\nversion: 1\nmodel: g2p_leg\nparameters: {motor_resistance_ohm: 6.0}\n"
     )
-    driver = start_driver(
-        tmp_path,
-        state_dir,
-        f"rig.envelope.calibration:={calibration}",
-        "rig.envelope.derate_start_c:=26.0",
-        "rig.envelope.derate_full_c:=30.0",
-    )
-    try:
-        peer.wait_for_driver()
-        assert peer.transition(Transition.TRANSITION_CONFIGURE), driver.log()
-        assert peer.transition(Transition.TRANSITION_ACTIVATE), driver.log()
-        response = peer.wait(peer.play(np.ones((60, 3))).get_result_async(), 30.0)
-        assert response.status == GoalStatus.STATUS_SUCCEEDED, response.result.message
-        rec = recording_from_msg(response.result.samples)
-        assert np.all(rec.activation[25] < 1.0)
-        assert peer.transition(Transition.TRANSITION_DEACTIVATE), driver.log()
-    finally:
-        assert driver.stop() == 0, driver.log_path.read_text()
+    rec = play_at_full_activation(tmp_path, state_dir, peer, 60, f"rig.envelope.calibration:={calibration}")
+    assert np.all(rec.activation[25] < 1.0)
 
 
 @pytest.mark.parametrize(("fake_devices", "heavy"), [(False, set()), (True, {"mujoco"})])
@@ -345,19 +353,7 @@ def test_the_driver_derates_a_hot_motor_from_its_measured_currents(
 ) -> None:
     # Derating from 26 degC: a few seconds at activation 1 heat the windings' estimate that far, from the
     # fake INA219s' currents.
-    driver = start_driver(
-        tmp_path, state_dir, "rig.envelope.derate_start_c:=26.0", "rig.envelope.derate_full_c:=30.0"
-    )
-    try:
-        peer.wait_for_driver()
-        assert peer.transition(Transition.TRANSITION_CONFIGURE), driver.log()
-        assert peer.transition(Transition.TRANSITION_ACTIVATE), driver.log()
-        response = peer.wait(peer.play(np.ones((390, 3))).get_result_async(), 30.0)
-        assert response.status == GoalStatus.STATUS_SUCCEEDED, response.result.message
-        rec = recording_from_msg(response.result.samples)
-        assert np.all(rec.activation[12:16] == 1.0)  # cold: untouched, once the ramp climbed from rest
-        assert np.all(rec.activation[-1] < 1.0)  # hot: derated toward baseline
-        assert np.all(rec.current_a[-1] < rec.current_a[len(rec) // 4])
-        assert peer.transition(Transition.TRANSITION_DEACTIVATE), driver.log()
-    finally:
-        assert driver.stop() == 0, driver.log_path.read_text()
+    rec = play_at_full_activation(tmp_path, state_dir, peer, 390)
+    assert np.all(rec.activation[12:16] == 1.0)  # cold: untouched, once the ramp climbed from rest
+    assert np.all(rec.activation[-1] < 1.0)  # hot: derated toward baseline
+    assert np.all(rec.current_a[-1] < rec.current_a[len(rec) // 4])
